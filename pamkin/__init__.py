@@ -1,0 +1,27 @@
+"""pamkin: design biomimetic bipedal robots actuated by pneumatic artificial muscles.
+
+Start with :func:`load_osim`, which imports an OpenSim model and returns a
+:class:`Model` with kinematics, muscle paths, forces and torques.
+"""
+
+from .errors import (
+    ConfigurationError,
+    OsimError,
+    PamkinError,
+    ParameterError,
+    RangeWarning,
+    UnsupportedFeatureError,
+)
+from .model import Model, load_osim
+
+__all__ = [
+    "ConfigurationError",
+    "Model",
+    "OsimError",
+    "PamkinError",
+    "ParameterError",
+    "RangeWarning",
+    "UnsupportedFeatureError",
+    "load_osim",
+]
+__version__ = "0.1.0"

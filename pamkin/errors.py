@@ -1,0 +1,62 @@
+"""Exception tree of pamkin.
+
+Every error names what it is about (file, element, component, coordinate,
+muscle) so that a user can find the offending input.
+"""
+
+from __future__ import annotations
+
+
+class PamkinError(Exception):
+    """Base class of every error raised by pamkin."""
+
+
+class OsimError(PamkinError):
+    """A problem in an OpenSim ``.osim`` file.
+
+    Attributes:
+        path: The file.
+        element: The XML element type (e.g. ``"CustomJoint"``), if known.
+        component: The ``name`` of the offending component, if known.
+    """
+
+    def __init__(self, path: str, message: str, *, element: str | None = None,
+                 component: str | None = None) -> None:
+        self.path = str(path)
+        self.element = element
+        self.component = component
+        where = self.path
+        if element is not None:
+            where += f": <{element}"
+            where += f' name="{component}">' if component is not None else ">"
+        elif component is not None:
+            where += f": {component}"
+        super().__init__(f"{where}: {message}")
+
+
+class UnsupportedFeatureError(OsimError):
+    """The ``.osim`` file uses an OpenSim feature pamkin does not implement."""
+
+
+class ConfigurationError(PamkinError, ValueError):
+    """A configuration array (coordinates) is malformed: wrong shape, NaN, unknown names."""
+
+
+class RangeWarning(UserWarning):
+    """Coordinates lie outside the model's ranges (values are used as given, never clamped)."""
+
+
+class ParameterError(PamkinError, ValueError):
+    """A physical parameter is out of range (e.g. a negative optimal fibre length)."""
+
+
+class DataFileError(PamkinError):
+    """A project data file (YAML/JSON/TOML design or parameter file) is malformed."""
+
+    def __init__(self, path: str, message: str) -> None:
+        self.path = str(path)
+        super().__init__(f"{self.path}: {message}")
+
+
+class BuildError(PamkinError):
+    """Generating a URDF from Xacro sources failed."""

@@ -1,0 +1,212 @@
+"""OpenSim scalar functions of one variable, evaluated exactly as OpenSim 4.6 does.
+
+Used for CustomJoint ``TransformAxis`` functions (e.g. Gait2392's knee translations
+as functions of knee angle) and for ``MovingPathPoint`` locations.
+
+Every function evaluates vectorized over numpy arrays and returns value and first
+derivative. :class:`SimmSpline` reproduces OpenSim's ``SimmSpline`` (natural cubic
+spline with third derivatives at the ends taken from divided differences; linear
+extrapolation with the end slopes outside the knots; a 2-point spline is a line).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+_TINY = 1e-7  # OpenSim's TINY_NUMBER: smallest knot spacing used in the fit.
+_ROUNDOFF = 2e-13  # OpenSim's ROUNDOFF_ERROR: "equal to an end knot" tolerance.
+
+
+class ScalarFunction(Protocol):
+    """A function y = f(x) of one variable, vectorized."""
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        """f(x), same shape as ``x``."""
+
+    def derivative(self, x: np.ndarray) -> np.ndarray:
+        """df/dx, same shape as ``x``."""
+
+    @property
+    def is_constant(self) -> bool:
+        """True when f does not depend on x."""
+
+
+@dataclass(frozen=True)
+class Constant:
+    """``Constant``: f(x) = c."""
+
+    c: float
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        return np.full(np.shape(x), self.c, dtype=float)
+
+    def derivative(self, x: np.ndarray) -> np.ndarray:
+        return np.zeros(np.shape(x), dtype=float)
+
+    @property
+    def is_constant(self) -> bool:
+        return True
+
+
+@dataclass(frozen=True)
+class LinearFunction:
+    """``LinearFunction``: f(x) = slope·x + intercept (OpenSim ``coefficients`` = slope, intercept)."""
+
+    slope: float
+    intercept: float
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        return self.slope * np.asarray(x, dtype=float) + self.intercept
+
+    def derivative(self, x: np.ndarray) -> np.ndarray:
+        return np.full(np.shape(x), self.slope, dtype=float)
+
+    @property
+    def is_constant(self) -> bool:
+        return self.slope == 0.0
+
+
+@dataclass(frozen=True)
+class PolynomialFunction:
+    """``PolynomialFunction``: coefficients highest power first (OpenSim's convention)."""
+
+    coefficients: tuple[float, ...]
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        return np.polyval(np.asarray(self.coefficients, dtype=float), np.asarray(x, dtype=float))
+
+    def derivative(self, x: np.ndarray) -> np.ndarray:
+        d = np.polyder(np.asarray(self.coefficients, dtype=float))
+        return np.polyval(d, np.asarray(x, dtype=float)) * np.ones(np.shape(x))
+
+    @property
+    def is_constant(self) -> bool:
+        return all(c == 0.0 for c in self.coefficients[:-1])
+
+
+@dataclass(frozen=True)
+class MultiplierFunction:
+    """``MultiplierFunction``: f(x) = scale · g(x) (OpenSim's scaled models use it)."""
+
+    function: ScalarFunction
+    scale: float
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        return self.scale * self.function.value(x)
+
+    def derivative(self, x: np.ndarray) -> np.ndarray:
+        return self.scale * self.function.derivative(x)
+
+    @property
+    def is_constant(self) -> bool:
+        return self.function.is_constant or self.scale == 0.0
+
+
+@dataclass(frozen=True)
+class SimmSpline:
+    """OpenSim's ``SimmSpline`` natural cubic spline through knots (x, y).
+
+    Attributes:
+        x: Knot abscissae, increasing, at least 2.
+        y: Knot ordinates.
+    """
+
+    x: tuple[float, ...]
+    y: tuple[float, ...]
+    _coef: tuple[np.ndarray, np.ndarray, np.ndarray] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if len(self.x) != len(self.y):
+            raise ValueError(f"SimmSpline: {len(self.x)} x values but {len(self.y)} y values")
+        if len(self.x) < 2:
+            raise ValueError("SimmSpline: needs at least 2 knots")
+        object.__setattr__(self, "_coef", _simm_coefficients(np.asarray(self.x, float),
+                                                             np.asarray(self.y, float)))
+
+    def _segment(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        xs = np.asarray(self.x, dtype=float)
+        k = np.clip(np.searchsorted(xs, x, side="left") - 1, 0, len(xs) - 2)
+        return k, x - xs[k]
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        xs, ys = np.asarray(self.x, float), np.asarray(self.y, float)
+        b, c, d = self._coef
+        k, dx = self._segment(x)
+        out = ys[k] + dx * (b[k] + dx * (c[k] + dx * d[k]))
+        out = np.where(x < xs[0], ys[0] + (x - xs[0]) * b[0], out)
+        out = np.where(x > xs[-1], ys[-1] + (x - xs[-1]) * b[-1], out)
+        out = np.where(np.abs(x - xs[0]) <= _ROUNDOFF, ys[0], out)
+        out = np.where(np.abs(x - xs[-1]) <= _ROUNDOFF, ys[-1], out)
+        return out
+
+    def derivative(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        xs = np.asarray(self.x, float)
+        b, c, d = self._coef
+        k, dx = self._segment(x)
+        out = b[k] + dx * (2.0 * c[k] + 3.0 * dx * d[k])
+        out = np.where(x < xs[0], b[0], out)
+        out = np.where(x > xs[-1], b[-1], out)
+        out = np.where(np.abs(x - xs[0]) <= _ROUNDOFF, b[0], out)
+        out = np.where(np.abs(x - xs[-1]) <= _ROUNDOFF, b[-1], out)
+        return out
+
+    @property
+    def is_constant(self) -> bool:
+        return len(set(self.y)) == 1
+
+
+def _simm_coefficients(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Polynomial coefficients b, c, d of each segment: y_k + b·dx + c·dx² + d·dx³.
+
+    Same algorithm as OpenSim's ``SimmSpline::calcCoefficients`` (tridiagonal system
+    with end conditions from third divided differences; Forsythe, Malcolm & Moler).
+    """
+    n = len(x)
+    b, c, d = np.zeros(n), np.zeros(n), np.zeros(n)
+    if n == 2:
+        t = max(_TINY, x[1] - x[0])
+        b[:] = (y[1] - y[0]) / t
+        return b, c, d
+    nm1, nm2 = n - 1, n - 2
+    d[0] = max(_TINY, x[1] - x[0])
+    c[1] = (y[1] - y[0]) / d[0]
+    for i in range(1, nm1):
+        d[i] = max(_TINY, x[i + 1] - x[i])
+        b[i] = 2.0 * (d[i - 1] + d[i])
+        c[i + 1] = (y[i + 1] - y[i]) / d[i]
+        c[i] = c[i + 1] - c[i]
+    b[0] = -d[0]
+    b[nm1] = -d[nm2]
+    c[0] = 0.0
+    c[nm1] = 0.0
+    if n > 3:
+        d31 = max(_TINY, x[3] - x[1])
+        d20 = max(_TINY, x[2] - x[0])
+        d1 = max(_TINY, x[nm1] - x[n - 3])
+        d2 = max(_TINY, x[nm2] - x[n - 4])
+        d30 = max(_TINY, x[3] - x[0])
+        d3 = max(_TINY, x[nm1] - x[n - 4])
+        c[0] = c[2] / d31 - c[1] / d20
+        c[nm1] = c[nm2] / d1 - c[n - 3] / d2
+        c[0] = c[0] * d[0] * d[0] / d30
+        c[nm1] = -c[nm1] * d[nm2] * d[nm2] / d3
+    for i in range(1, n):
+        t = d[i - 1] / b[i - 1]
+        b[i] -= t * d[i - 1]
+        c[i] -= t * c[i - 1]
+    c[nm1] /= b[nm1]
+    for i in range(nm2, -1, -1):
+        c[i] = (c[i] - d[i] * c[i + 1]) / b[i]
+    b[nm1] = (y[nm1] - y[nm2]) / d[nm2] + d[nm2] * (c[nm2] + 2.0 * c[nm1])
+    for i in range(nm1):
+        b[i] = (y[i + 1] - y[i]) / d[i] - d[i] * (c[i + 1] + 2.0 * c[i])
+        d[i] = (c[i + 1] - c[i]) / d[i]
+        c[i] *= 3.0
+    c[nm1] *= 3.0
+    d[nm1] = d[nm2]
+    return b, c, d

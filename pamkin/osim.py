@@ -1,0 +1,749 @@
+"""Read an OpenSim 4.x ``.osim`` model file into typed Python objects.
+
+Supported (everything Gait2392 uses, plus the common simple joints):
+
+* ``Body`` (mass properties and attached ``Mesh`` geometry), ``Ground``.
+* ``CustomJoint`` with ``SpatialTransform`` (``TransformAxis`` with ``Constant``,
+  ``LinearFunction``, ``SimmSpline``, ``PolynomialFunction``, ``MultiplierFunction``),
+  ``PinJoint``, ``WeldJoint``; parent/child ``PhysicalOffsetFrame`` with translation
+  and body-fixed XYZ orientation.
+* ``Coordinate`` (name, range, default value, locked, clamped).
+* Muscles ``Thelen2003Muscle`` and ``Millard2012EquilibriumMuscle`` with
+  ``PathPoint``, ``ConditionalPathPoint`` and ``MovingPathPoint`` paths.
+
+Anything else that changes kinematics or muscle paths (wrap objects, constraints,
+other joint, function, path-point or force types) raises
+:class:`~pamkin.errors.UnsupportedFeatureError` naming the file, the element and
+the component: pamkin never approximates silently.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import OsimError, UnsupportedFeatureError
+from .functions import (
+    Constant,
+    LinearFunction,
+    MultiplierFunction,
+    PolynomialFunction,
+    ScalarFunction,
+    SimmSpline,
+)
+
+GROUND = "ground"
+
+#: Muscle classes whose parameters pamkin reads.
+MUSCLE_CLASSES = ("Thelen2003Muscle", "Millard2012EquilibriumMuscle")
+
+#: Thelen2003Muscle properties (name in the file -> default when absent).
+THELEN_PROPERTIES: dict[str, float] = {
+    "max_isometric_force": math.nan,
+    "optimal_fiber_length": math.nan,
+    "tendon_slack_length": math.nan,
+    "pennation_angle_at_optimal": 0.0,
+    "max_contraction_velocity": 10.0,
+    "activation_time_constant": 0.015,
+    "deactivation_time_constant": 0.05,
+    "FmaxTendonStrain": 0.04,
+    "FmaxMuscleStrain": 0.6,
+    "KshapeActive": 0.45,
+    "KshapePassive": 5.0,
+    "Af": 0.25,
+    "Flen": 1.4,
+    "fv_linear_extrap": 0.95,
+    "maximum_pennation_angle": math.acos(0.1),
+    "minimum_activation": 0.01,
+}
+
+#: Millard2012EquilibriumMuscle scalar properties read (curves keep OpenSim defaults).
+MILLARD_PROPERTIES: dict[str, float] = {
+    "max_isometric_force": math.nan,
+    "optimal_fiber_length": math.nan,
+    "tendon_slack_length": math.nan,
+    "pennation_angle_at_optimal": 0.0,
+    "max_contraction_velocity": 10.0,
+    "minimum_activation": 0.01,
+    "maximum_pennation_angle": math.acos(0.1),
+}
+
+
+@dataclass(frozen=True)
+class OffsetFrame:
+    """A frame fixed in a body: X_body_frame = (R, p).
+
+    Attributes:
+        name: Frame name.
+        body: Name of the body (or ``"ground"``) the frame is fixed in.
+        translation: Origin of the frame in the body frame [m].
+        orientation: Body-fixed X-Y-Z Euler angles of the frame relative to the body [rad].
+    """
+
+    name: str
+    body: str
+    translation: tuple[float, float, float]
+    orientation: tuple[float, float, float]
+
+    def transform(self) -> np.ndarray:
+        """Homogeneous transform (4, 4) from this frame to its body frame."""
+        T = np.eye(4)
+        T[:3, :3] = rotation_xyz_body_fixed(self.orientation)
+        T[:3, 3] = self.translation
+        return T
+
+
+@dataclass(frozen=True)
+class TransformAxis:
+    """One of a CustomJoint's six ``TransformAxis`` (rotation1-3, translation1-3).
+
+    Attributes:
+        name: ``rotation1`` ... ``translation3``.
+        coordinates: Names of the coordinates the function takes (0 or 1 supported).
+        axis: Unit axis (rotation axes in the successively rotated frame, translation
+            axes in the parent offset frame).
+        function: The function of the coordinate giving the angle [rad] or displacement [m].
+    """
+
+    name: str
+    coordinates: tuple[str, ...]
+    axis: tuple[float, float, float]
+    function: ScalarFunction
+
+    @property
+    def is_rotation(self) -> bool:
+        return self.name.startswith("rotation")
+
+
+@dataclass(frozen=True)
+class Coordinate:
+    """A generalized coordinate.
+
+    Attributes:
+        name: Coordinate name.
+        joint: Name of the joint owning it.
+        range: (min, max) [rad or m].
+        default_value: Default value [rad or m].
+        locked: OpenSim's ``locked`` flag.
+        clamped: OpenSim's ``clamped`` flag.
+        rotational: True for rotational (radians), False for translational (metres).
+    """
+
+    name: str
+    joint: str
+    range: tuple[float, float]
+    default_value: float
+    locked: bool
+    clamped: bool
+    rotational: bool
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A joint between a parent and a child body.
+
+    The joint maps the child offset frame M to the parent offset frame F by
+    X_FM(q): translations (along translation axes in F) followed by the rotation
+    sequence rotation1 · rotation2 · rotation3 (body-fixed). ``PinJoint`` is a
+    single rotation about the frames' Z axis and ``WeldJoint`` has no axes.
+
+    Attributes:
+        name: Joint name.
+        kind: ``"CustomJoint"``, ``"PinJoint"`` or ``"WeldJoint"``.
+        parent_frame: Joint frame F, fixed in the parent body.
+        child_frame: Joint frame M, fixed in the child body.
+        axes: Transform axes in OpenSim order (translations first when applied).
+        coordinates: Coordinates owned by this joint.
+    """
+
+    name: str
+    kind: str
+    parent_frame: OffsetFrame
+    child_frame: OffsetFrame
+    axes: tuple[TransformAxis, ...]
+    coordinates: tuple[str, ...]
+
+    @property
+    def parent(self) -> str:
+        return self.parent_frame.body
+
+    @property
+    def child(self) -> str:
+        return self.child_frame.body
+
+
+@dataclass(frozen=True)
+class MeshGeometry:
+    """A mesh attached to a body.
+
+    Attributes:
+        mesh_file: File name as written in the model (e.g. ``femur_r.vtp``).
+        scale_factors: Scale factors along the frame axes.
+        frame: Frame the mesh is attached to (fixed in its body).
+    """
+
+    mesh_file: str
+    scale_factors: tuple[float, float, float]
+    frame: OffsetFrame
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid body.
+
+    Attributes:
+        name: Body name.
+        mass: Mass [kg].
+        mass_center: Centre of mass in the body frame [m].
+        inertia: (Ixx, Iyy, Izz, Ixy, Ixz, Iyz) about the centre of mass [kg·m²].
+        meshes: Attached meshes.
+    """
+
+    name: str
+    mass: float
+    mass_center: tuple[float, float, float]
+    inertia: tuple[float, float, float, float, float, float]
+    meshes: tuple[MeshGeometry, ...] = ()
+
+
+@dataclass(frozen=True)
+class PathPoint:
+    """A path point fixed in a body.
+
+    Attributes:
+        name: Point name.
+        body: Body the point is fixed in.
+        location: Location in the body frame [m].
+    """
+
+    name: str
+    body: str
+    location: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class ConditionalPathPoint(PathPoint):
+    """A fixed point that is part of the path only while ``coordinate`` lies in ``range``.
+
+    OpenSim includes it when range[0] − 1e-5 ≤ q ≤ range[1] + 1e-5.
+    """
+
+    coordinate: str = ""
+    range: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class MovingPathPoint:
+    """A point whose location in its body is a function of coordinates.
+
+    Attributes:
+        name: Point name.
+        body: Body the point moves in.
+        functions: (f_x, f_y, f_z) giving the location components [m].
+        coordinates: Names of the coordinates of f_x, f_y and f_z.
+    """
+
+    name: str
+    body: str
+    functions: tuple[ScalarFunction, ScalarFunction, ScalarFunction]
+    coordinates: tuple[str, str, str]
+
+
+AnyPathPoint = PathPoint | ConditionalPathPoint | MovingPathPoint
+
+
+@dataclass(frozen=True)
+class Muscle:
+    """A musculotendon actuator with a straight-line path.
+
+    Attributes:
+        name: Muscle name.
+        kind: OpenSim class (``Thelen2003Muscle`` or ``Millard2012EquilibriumMuscle``).
+        points: Path points in order (origin first).
+        params: Scalar properties by OpenSim property name (SI units).
+    """
+
+    name: str
+    kind: str
+    points: tuple[AnyPathPoint, ...]
+    params: dict[str, float] = field(hash=False, compare=False)
+
+
+@dataclass(frozen=True)
+class OsimModel:
+    """An imported OpenSim model.
+
+    Attributes:
+        path: The ``.osim`` file.
+        name: Model name.
+        bodies: Bodies in file order (ground excluded).
+        joints: Joints in file order.
+        coordinates: Coordinates in OpenSim's CoordinateSet order (joint order, then
+            order within each joint).
+        muscles: Muscles in ForceSet order.
+        credits: The model's credits string.
+    """
+
+    path: str
+    name: str
+    bodies: tuple[Body, ...]
+    joints: tuple[Joint, ...]
+    coordinates: tuple[Coordinate, ...]
+    muscles: tuple[Muscle, ...]
+    credits: str = ""
+
+    def coordinate(self, name: str) -> Coordinate:
+        """The coordinate called ``name`` (KeyError listing valid names otherwise)."""
+        for c in self.coordinates:
+            if c.name == name:
+                return c
+        raise KeyError(f"no coordinate {name!r}; valid: {[c.name for c in self.coordinates]}")
+
+    def body(self, name: str) -> Body:
+        """The body called ``name``."""
+        for b in self.bodies:
+            if b.name == name:
+                return b
+        raise KeyError(f"no body {name!r}; valid: {[b.name for b in self.bodies]}")
+
+
+def rotation_xyz_body_fixed(angles) -> np.ndarray:
+    """Rotation matrix of body-fixed X-Y-Z Euler angles (OpenSim frame orientation) [rad]."""
+    a, b, c = (float(v) for v in angles)
+    return _rot([1, 0, 0], a) @ _rot([0, 1, 0], b) @ _rot([0, 0, 1], c)
+
+
+def _rot(axis, angle: float) -> np.ndarray:
+    k = np.asarray(axis, float)
+    k = k / np.linalg.norm(k)
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * (K @ K)
+
+
+# --------------------------------------------------------------------------- parsing
+
+
+class _Reader:
+    """Parsing context: the file path for error messages."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def err(self, msg: str, el: ET.Element | None = None, unsupported: bool = False) -> OsimError:
+        cls = UnsupportedFeatureError if unsupported else OsimError
+        return cls(str(self.path), msg, element=None if el is None else el.tag,
+                   component=None if el is None else el.get("name"))
+
+    def text(self, el: ET.Element, tag: str, default: str | None = None) -> str:
+        child = el.find(tag)
+        if child is None or child.text is None:
+            if default is not None:
+                return default
+            raise self.err(f"missing <{tag}>", el)
+        return child.text.strip()
+
+    def floats(self, el: ET.Element, tag: str, n: int | None = None,
+               default: str | None = None) -> tuple[float, ...]:
+        raw = self.text(el, tag, default)
+        try:
+            vals = tuple(float(v) for v in raw.split())
+        except ValueError:
+            raise self.err(f"<{tag}> is not a list of numbers: {raw!r}", el) from None
+        if n is not None and len(vals) != n:
+            raise self.err(f"<{tag}> must have {n} numbers, has {len(vals)}", el)
+        if not all(math.isfinite(v) for v in vals):
+            raise self.err(f"<{tag}> has a non-finite number: {raw!r}", el)
+        return vals
+
+    def flag(self, el: ET.Element, tag: str, default: bool) -> bool:
+        raw = self.text(el, tag, "true" if default else "false").lower()
+        if raw not in ("true", "false", "1", "0"):
+            raise self.err(f"<{tag}> must be true or false, is {raw!r}", el)
+        return raw in ("true", "1")
+
+    def function(self, el: ET.Element, owner: ET.Element) -> ScalarFunction:
+        tag = el.tag
+        if tag == "Constant":
+            return Constant(self.floats(el, "value", 1)[0])
+        if tag == "LinearFunction":
+            coefs = self.floats(el, "coefficients", 2)
+            return LinearFunction(coefs[0], coefs[1])
+        if tag == "SimmSpline":
+            x, y = self.floats(el, "x"), self.floats(el, "y")
+            if len(x) != len(y) or len(x) < 2:
+                raise self.err(f"SimmSpline needs >= 2 equal-length x and y, has {len(x)}, {len(y)}", owner)
+            if any(b <= a for a, b in zip(x, x[1:])):
+                raise self.err("SimmSpline x values must increase", owner)
+            return SimmSpline(x, y)
+        if tag == "PolynomialFunction":
+            return PolynomialFunction(self.floats(el, "coefficients"))
+        if tag == "MultiplierFunction":
+            inner = el.find("function")
+            inner_fn = None
+            if inner is not None:
+                children = list(inner)
+                if len(children) == 1:
+                    inner_fn = self.function(children[0], owner)
+            if inner_fn is None:
+                raise self.err("MultiplierFunction without a single inner <function>", owner)
+            return MultiplierFunction(inner_fn, self.floats(el, "scale", 1, "1")[0])
+        raise self.err(f"function type <{tag}> is not supported", owner, unsupported=True)
+
+
+def _last(path_text: str) -> str:
+    """Last element of an OpenSim socket path (``/bodyset/femur_r`` -> ``femur_r``)."""
+    return path_text.strip().rstrip("/").split("/")[-1]
+
+
+def load_osim_file(path: str | Path) -> OsimModel:
+    """Parse an OpenSim 4.x ``.osim`` file.
+
+    Args:
+        path: The ``.osim`` file.
+
+    Returns:
+        The model's bodies, joints, coordinates and muscles.
+
+    Raises:
+        OsimError: The file is missing, not well-formed XML, or inconsistent
+            (e.g. a joint names a body that does not exist).
+        UnsupportedFeatureError: The model uses a feature pamkin does not implement.
+    """
+    path = Path(path)
+    rd = _Reader(path)
+    if not path.is_file():
+        raise OsimError(str(path), "file not found")
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as e:
+        raise OsimError(str(path), f"not a well-formed .osim (XML) file: {e}") from None
+    model_el = root.find("Model") if root.tag == "OpenSimDocument" else None
+    if model_el is None:
+        raise OsimError(str(path), "no <OpenSimDocument><Model> element")
+    version = int(root.get("Version", "0") or 0)
+    if version < 40000:
+        raise UnsupportedFeatureError(
+            str(path), f"OpenSimDocument Version {version} predates OpenSim 4.0; re-save it with OpenSim 4.x",
+            element="OpenSimDocument")
+
+    ground = model_el.find("Ground")
+    _check_no_wrap(rd, ground)
+    bodies = _read_bodies(rd, model_el)
+    body_names = {b.name for b in bodies} | {GROUND}
+    joints = _read_joints(rd, model_el, body_names)
+    _check_tree(rd, bodies, joints)
+    coordinates = tuple(c for j in joints for c in j[1])
+    joints_only = tuple(j[0] for j in joints)
+    coord_names = {c.name for c in coordinates}
+    _check_empty_set(rd, model_el, "ConstraintSet")
+    _check_empty_set(rd, model_el, "ContactGeometrySet", ok_if_missing=True)
+    muscles = _read_muscles(rd, model_el, body_names, coord_names)
+    credits_el = model_el.find("credits")
+    return OsimModel(
+        path=str(path),
+        name=model_el.get("name", path.stem),
+        bodies=bodies,
+        joints=joints_only,
+        coordinates=coordinates,
+        muscles=muscles,
+        credits=(credits_el.text or "").strip() if credits_el is not None else "",
+    )
+
+
+def _check_no_wrap(rd: _Reader, owner: ET.Element | None) -> None:
+    if owner is None:
+        return
+    for ws in owner.iter("WrapObjectSet"):
+        objs = ws.find("objects")
+        if objs is not None and len(list(objs)):
+            first = list(objs)[0]
+            raise rd.err(f"wrap object <{first.tag} name=\"{first.get('name')}\"> on "
+                         f"{owner.tag} {owner.get('name')!r}: wrapping is not supported", first,
+                         unsupported=True)
+
+
+def _check_empty_set(rd: _Reader, model_el: ET.Element, tag: str, ok_if_missing: bool = True) -> None:
+    el = model_el.find(tag)
+    if el is None:
+        return
+    objs = el.find("objects")
+    if objs is not None and len(list(objs)):
+        first = list(objs)[0]
+        raise rd.err(f"{tag} entry is not supported (pamkin models have no constraints)", first,
+                     unsupported=True)
+
+
+def _read_bodies(rd: _Reader, model_el: ET.Element) -> tuple[Body, ...]:
+    bodyset = model_el.find("BodySet/objects")
+    if bodyset is None:
+        raise OsimError(str(rd.path), "no <BodySet><objects>", element="Model")
+    out = []
+    for b in bodyset:
+        if b.tag != "Body":
+            raise rd.err(f"<{b.tag}> in BodySet is not supported", b, unsupported=True)
+        name = b.get("name")
+        if not name:
+            raise rd.err("Body without a name", b)
+        _check_no_wrap(rd, b)
+        meshes = []
+        for mesh in b.iter("Mesh"):
+            scale = rd.floats(mesh, "scale_factors", 3, "1 1 1")
+            frame = OffsetFrame(name, name, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+            meshes.append(MeshGeometry(rd.text(mesh, "mesh_file"), scale, frame))
+        if b.find("components") is not None and len(list(b.find("components"))):
+            raise rd.err("Body <components> are not supported", b, unsupported=True)
+        out.append(Body(
+            name=name,
+            mass=rd.floats(b, "mass", 1, "0")[0],
+            mass_center=rd.floats(b, "mass_center", 3, "0 0 0"),
+            inertia=rd.floats(b, "inertia", 6, "0 0 0 0 0 0"),
+            meshes=tuple(meshes),
+        ))
+    return tuple(out)
+
+
+def _resolve_frame(rd: _Reader, joint_el: ET.Element, ref: str, frames: dict[str, ET.Element],
+                   body_names: set[str], depth: int = 0) -> OffsetFrame:
+    """Resolve a joint's socket to an offset frame fixed in a body."""
+    key = _last(ref)
+    if key in frames and depth < 8:
+        fr = frames[key]
+        parent_ref = rd.text(fr, "socket_parent")
+        base = _resolve_frame(rd, joint_el, parent_ref, {k: v for k, v in frames.items() if k != key},
+                              body_names, depth + 1)
+        own = OffsetFrame(key, base.body, rd.floats(fr, "translation", 3, "0 0 0"),
+                          rd.floats(fr, "orientation", 3, "0 0 0"))
+        if base.translation == (0.0, 0.0, 0.0) and base.orientation == (0.0, 0.0, 0.0):
+            return own
+        T = base.transform() @ own.transform()
+        return OffsetFrame(key, base.body, tuple(float(v) for v in T[:3, 3]), _xyz_from_matrix(T[:3, :3]))
+    if key in body_names:
+        return OffsetFrame(key, key, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    raise rd.err(f"frame reference {ref!r} names no body, ground or offset frame of this joint", joint_el)
+
+
+def _xyz_from_matrix(R: np.ndarray) -> tuple[float, float, float]:
+    """Body-fixed X-Y-Z Euler angles of a rotation matrix."""
+    b = math.asin(max(-1.0, min(1.0, R[0, 2])))
+    a = math.atan2(-R[1, 2], R[2, 2])
+    c = math.atan2(-R[0, 1], R[0, 0])
+    return (a, b, c)
+
+
+_AXIS_NAMES = ("rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3")
+
+
+def _read_joints(rd: _Reader, model_el: ET.Element,
+                 body_names: set[str]) -> list[tuple[Joint, tuple[Coordinate, ...]]]:
+    jointset = model_el.find("JointSet/objects")
+    if jointset is None:
+        raise OsimError(str(rd.path), "no <JointSet><objects>", element="Model")
+    out = []
+    for j in jointset:
+        name = j.get("name") or ""
+        if j.tag not in ("CustomJoint", "PinJoint", "WeldJoint"):
+            raise rd.err(f"joint type <{j.tag}> is not supported (CustomJoint, PinJoint, WeldJoint are)",
+                         j, unsupported=True)
+        frames = {}
+        frames_el = j.find("frames")
+        if frames_el is not None:
+            for fr in frames_el:
+                if fr.tag != "PhysicalOffsetFrame":
+                    raise rd.err(f"<{fr.tag}> joint frame is not supported", fr, unsupported=True)
+                frames[fr.get("name")] = fr
+        parent = _resolve_frame(rd, j, rd.text(j, "socket_parent_frame"), frames, body_names)
+        child = _resolve_frame(rd, j, rd.text(j, "socket_child_frame"), frames, body_names)
+        if child.body == GROUND:
+            raise rd.err("a joint's child cannot be ground", j)
+        coords = []
+        coords_el = j.find("coordinates")
+        for c in (coords_el if coords_el is not None else []):
+            if c.tag != "Coordinate":
+                raise rd.err(f"<{c.tag}> in coordinates", c, unsupported=True)
+            pf = c.find("prescribed_function")
+            if c.find("prescribed") is not None and rd.flag(c, "prescribed", False):
+                raise rd.err("prescribed coordinates are not supported", c, unsupported=True)
+            rng = rd.floats(c, "range", 2, "-3.141592653589793 3.141592653589793")
+            if rng[0] > rng[1]:
+                raise rd.err(f"range min {rng[0]} > max {rng[1]}", c)
+            coords.append(dict(el=c, name=c.get("name"), range=rng,
+                               default=rd.floats(c, "default_value", 1, "0")[0],
+                               locked=rd.flag(c, "locked", False),
+                               clamped=rd.flag(c, "clamped", True), pf=pf))
+        cnames = tuple(c["name"] for c in coords)
+        axes: list[TransformAxis] = []
+        rotational = {n: True for n in cnames}
+        if j.tag == "CustomJoint":
+            st = j.find("SpatialTransform")
+            if st is None:
+                raise rd.err("CustomJoint without <SpatialTransform>", j)
+            by_name = {ta.get("name"): ta for ta in st.findall("TransformAxis")}
+            for an in _AXIS_NAMES:
+                ta = by_name.get(an)
+                if ta is None:
+                    axes.append(TransformAxis(an, (), _default_axis(an), Constant(0.0)))
+                    continue
+                axis = np.array(rd.floats(ta, "axis", 3))
+                if np.linalg.norm(axis) == 0:
+                    raise rd.err("zero axis", ta)
+                axis = axis / np.linalg.norm(axis)
+                tac = tuple((rd.text(ta, "coordinates", "") or "").split())
+                fn_els = [e for e in ta if e.tag not in ("coordinates", "axis")]
+                if len(fn_els) != 1:
+                    raise rd.err("TransformAxis needs exactly one function", ta)
+                fn_el = fn_els[0]
+                if fn_el.tag == "function":  # OpenSim 4 may wrap it: <function><LinearFunction/></function>
+                    inner = list(fn_el)
+                    if len(inner) != 1:
+                        raise rd.err("empty <function>", ta)
+                    fn_el = inner[0]
+                fn = rd.function(fn_el, ta)
+                if len(tac) > 1:
+                    raise rd.err(f"{an} depends on {len(tac)} coordinates; only one is supported", ta,
+                                 unsupported=True)
+                for cn in tac:
+                    if cn not in cnames:
+                        raise rd.err(f"{an} uses coordinate {cn!r} of another joint (coupling across "
+                                     "joints is not supported)", ta, unsupported=True)
+                if not tac and not fn.is_constant:
+                    raise rd.err(f"{an} has a non-constant function but no coordinate", ta)
+                if an.startswith("translation") and tac and isinstance(fn, LinearFunction) \
+                        and fn.slope != 0 and fn.intercept == 0:
+                    rotational[tac[0]] = False
+                axes.append(TransformAxis(an, tac, tuple(float(v) for v in axis), fn))
+            _check_rotation_axes(rd, j, axes)
+            # a coordinate that drives only translations is translational
+            for cn in cnames:
+                uses = [a for a in axes if cn in a.coordinates]
+                if uses and all(not a.is_rotation for a in uses):
+                    rotational[cn] = False
+        elif j.tag == "PinJoint":
+            if len(cnames) != 1:
+                raise rd.err(f"PinJoint must have 1 coordinate, has {len(cnames)}", j)
+            axes = [TransformAxis("rotation1", cnames, (0.0, 0.0, 1.0), LinearFunction(1.0, 0.0))]
+        elif j.tag == "WeldJoint":
+            if cnames:
+                raise rd.err("WeldJoint cannot have coordinates", j)
+        for c in coords:
+            if c["pf"] is not None and len(list(c["pf"])):
+                raise rd.err("prescribed_function is not supported", c["el"], unsupported=True)
+            if not any(c["name"] in a.coordinates for a in axes):
+                raise rd.err(f"coordinate {c['name']!r} drives no TransformAxis", j)
+        joint = Joint(name, j.tag, parent, child, tuple(axes), cnames)
+        out.append((joint, tuple(Coordinate(c["name"], name, c["range"], c["default"], c["locked"],
+                                             c["clamped"], rotational[c["name"]]) for c in coords)))
+    return out
+
+
+def _default_axis(name: str) -> tuple[float, float, float]:
+    i = int(name[-1]) - 1
+    return tuple(1.0 if k == i else 0.0 for k in range(3))  # type: ignore[return-value]
+
+
+def _check_rotation_axes(rd: _Reader, j: ET.Element, axes: list[TransformAxis]) -> None:
+    """Reject CustomJoints where OpenSim would silently re-orthogonalize active rotation axes."""
+    active = [a for a in axes if a.is_rotation and not (a.function.is_constant
+                                                        and float(a.function.value(0.0)) == 0.0)]
+    for i, a in enumerate(active):
+        for b in active[i + 1:]:
+            if abs(abs(float(np.dot(a.axis, b.axis))) - 1.0) < 1e-9:
+                raise rd.err(f"{a.name} and {b.name} are parallel; OpenSim replaces such axes "
+                             "and pamkin does not reproduce that", j, unsupported=True)
+
+
+def _check_tree(rd: _Reader, bodies: tuple[Body, ...], joints) -> None:
+    children: dict[str, str] = {}
+    for joint, _ in joints:
+        if joint.child in children:
+            raise OsimError(str(rd.path), f"body {joint.child!r} is the child of two joints "
+                            f"({children[joint.child]!r}, {joint.name!r}): closed loops are not supported",
+                            element="Joint", component=joint.name)
+        children[joint.child] = joint.name
+    for b in bodies:
+        if b.name not in children:
+            raise OsimError(str(rd.path), "body is attached by no joint", element="Body", component=b.name)
+    parent_of = {joint.child: joint.parent for joint, _ in joints}
+    for b in bodies:
+        seen, cur = set(), b.name
+        while cur != GROUND:
+            if cur in seen:
+                raise OsimError(str(rd.path), "joints form a cycle", element="Body", component=b.name)
+            seen.add(cur)
+            cur = parent_of[cur]
+
+
+def _read_muscles(rd: _Reader, model_el: ET.Element, body_names: set[str],
+                  coord_names: set[str]) -> tuple[Muscle, ...]:
+    forceset = model_el.find("ForceSet/objects")
+    if forceset is None:
+        return ()
+    out = []
+    for f in forceset:
+        name = f.get("name") or ""
+        if f.tag not in MUSCLE_CLASSES:
+            raise rd.err(f"force type <{f.tag}> is not supported (muscle classes: "
+                         f"{', '.join(MUSCLE_CLASSES)})", f, unsupported=True)
+        gp = f.find("GeometryPath")
+        if gp is None:
+            raise rd.err("muscle without <GeometryPath>", f)
+        pws = gp.find("PathWrapSet/objects")
+        if pws is not None and len(list(pws)):
+            raise rd.err("path wrapping (PathWrapSet) is not supported", f, unsupported=True)
+        pps = gp.find("PathPointSet/objects")
+        if pps is None or len(list(pps)) < 2:
+            raise rd.err("path needs at least 2 points", f)
+        points = [_read_point(rd, p, f, body_names, coord_names) for p in pps]
+        if isinstance(points[0], ConditionalPathPoint) or isinstance(points[-1], ConditionalPathPoint):
+            raise rd.err("first and last path points must not be conditional", f, unsupported=True)
+        defaults = THELEN_PROPERTIES if f.tag == "Thelen2003Muscle" else MILLARD_PROPERTIES
+        params = {}
+        for key, default in defaults.items():
+            el = f.find(key)
+            if el is None:
+                if math.isnan(default):
+                    raise rd.err(f"missing <{key}>", f)
+                params[key] = default
+            else:
+                params[key] = rd.floats(f, key, 1)[0]
+        out.append(Muscle(name, f.tag, tuple(points), params))
+    return tuple(out)
+
+
+def _read_point(rd: _Reader, p: ET.Element, muscle: ET.Element, body_names: set[str],
+                coord_names: set[str]) -> AnyPathPoint:
+    name = p.get("name") or ""
+    if p.tag not in ("PathPoint", "ConditionalPathPoint", "MovingPathPoint"):
+        raise rd.err(f"path point type <{p.tag}> in muscle {muscle.get('name')!r} is not supported", p,
+                     unsupported=True)
+    body = _last(rd.text(p, "socket_parent_frame"))
+    if body not in body_names:
+        raise rd.err(f"path point of muscle {muscle.get('name')!r} is on unknown body/frame {body!r}", p)
+    if p.tag == "MovingPathPoint":
+        fns, cns = [], []
+        for axis in "xyz":
+            loc = p.find(f"{axis}_location")
+            cref = p.find(f"socket_{axis}_coordinate")
+            if loc is None or len(list(loc)) != 1:
+                raise rd.err(f"MovingPathPoint needs one function in <{axis}_location>", p)
+            fn = rd.function(list(loc)[0], p)
+            cn = _last(cref.text) if cref is not None and cref.text else ""
+            if cn and cn not in coord_names:
+                raise rd.err(f"{axis}_location uses unknown coordinate {cn!r}", p)
+            if not cn and not fn.is_constant:
+                raise rd.err(f"{axis}_location has no coordinate", p)
+            fns.append(fn)
+            cns.append(cn)
+        return MovingPathPoint(name, body, tuple(fns), tuple(cns))  # type: ignore[arg-type]
+    loc = rd.floats(p, "location", 3)
+    if p.tag == "ConditionalPathPoint":
+        cref = rd.text(p, "socket_coordinate")
+        cn = _last(cref)
+        if cn not in coord_names:
+            raise rd.err(f"socket_coordinate names unknown coordinate {cn!r}", p)
+        rng = rd.floats(p, "range", 2)
+        return ConditionalPathPoint(name, body, loc, coordinate=cn, range=rng)  # type: ignore[arg-type]
+    return PathPoint(name, body, loc)  # type: ignore[arg-type]

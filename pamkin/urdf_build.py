@@ -1,0 +1,189 @@
+"""OpenSim model → project data file (YAML) → Xacro → URDF.
+
+The importer (:mod:`pamkin.osim`) reads the ``.osim``; :func:`model_data` turns it
+into the plain numbers the Xacro macros of ``robot/xacro/osim_joint.xacro`` need;
+:func:`render_urdf` runs the ``xacro`` Python package on ``robot/osim_model.urdf.xacro``.
+Every file is written atomically (temporary file + ``os.replace``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .errors import BuildError
+from .osim import Coordinate, Joint, OsimModel, TransformAxis, load_osim_file
+
+#: Folder holding the Xacro sources and the project data files.
+ROBOT_DIR = Path(os.environ.get("PAMKIN_ROBOT_DIR", Path(__file__).resolve().parent.parent / "robot"))
+#: Folder of the generated URDFs that are committed.
+URDF_DIR = ROBOT_DIR.parent / "urdf"
+OSIM_XACRO = ROBOT_DIR / "osim_model.urdf.xacro"
+
+
+def axis_joint_name(joint: Joint, axis: TransformAxis) -> str:
+    """URDF joint name of a CustomJoint's variable TransformAxis (``knee_r_translation1``)."""
+    return f"{joint.name}_{axis.name}"
+
+
+def urdf_rpy(R: np.ndarray) -> tuple[float, float, float]:
+    """URDF roll-pitch-yaw (R = Rz(yaw)·Ry(pitch)·Rx(roll)) of a rotation matrix [rad]."""
+    pitch = math.asin(max(-1.0, min(1.0, -float(R[2, 0]))))
+    roll = math.atan2(float(R[2, 1]), float(R[2, 2]))
+    yaw = math.atan2(float(R[1, 0]), float(R[0, 0]))
+    return (roll, pitch, yaw)
+
+
+def _function_range(axis: TransformAxis, coord: Coordinate | None) -> tuple[float, float]:
+    if coord is None:
+        v = float(axis.function.value(np.array(0.0)))
+        return (v, v)
+    lo, hi = coord.range
+    vals = axis.function.value(np.linspace(lo, hi, 201))
+    return (float(np.min(vals)), float(np.max(vals)))
+
+
+def _vec(v) -> str:
+    """Space-separated full-precision numbers (Xacro inserts them verbatim)."""
+    return " ".join(repr(float(x)) for x in v)
+
+
+def _axis_specs(joint: Joint, coords: dict[str, Coordinate]) -> list[dict]:
+    """Ordered URDF joint specs for one OpenSim joint (translations, then rotations)."""
+    from .osim import _rot  # local: tiny helper shared with the importer
+
+    order = [a for a in joint.axes if not a.is_rotation] + [a for a in joint.axes if a.is_rotation]
+    specs = []
+    for a in order:
+        zero = {"xyz": "0 0 0", "rpy": "0 0 0", "axis": _vec(a.axis)}
+        if a.function.is_constant:
+            c = float(a.function.value(np.array(0.0)))
+            if c == 0.0:
+                continue
+            spec = dict(zero, name=a.name, type="fixed", lower=0.0, upper=0.0)
+            if a.is_rotation:
+                spec["rpy"] = _vec(urdf_rpy(_rot(a.axis, c)))
+            else:
+                spec["xyz"] = _vec([c * v for v in a.axis])
+        else:
+            lo, hi = _function_range(a, coords.get(a.coordinates[0]) if a.coordinates else None)
+            spec = dict(zero, name=a.name, type="revolute" if a.is_rotation else "prismatic",
+                        lower=lo, upper=hi)
+        specs.append(spec)
+    return specs
+
+
+def model_data(model: OsimModel) -> dict:
+    """The plain data (bodies, joints as URDF chains) the Xacro macros expand.
+
+    Args:
+        model: An imported model.
+
+    Returns:
+        A YAML-serialisable dict: ``bodies`` (name, mass, mass_center, inertia) and
+        ``joints`` (name, parent, child, parent offset ``parent_xyz``/``parent_rpy``,
+        child-offset inverse ``child_xyz``/``child_rpy``, and ``axes``).
+    """
+    coords = {c.name: c for c in model.coordinates}
+    bodies = [dict(name=b.name, mass=float(b.mass), mass_center=_vec(b.mass_center),
+                   inertia=[float(v) for v in b.inertia]) for b in model.bodies]
+    joints = []
+    for j in model.joints:
+        Tp = j.parent_frame.transform()
+        Tc_inv = np.linalg.inv(j.child_frame.transform())
+        joints.append(dict(
+            name=j.name, kind=j.kind, parent=j.parent, child=j.child,
+            parent_xyz=_vec(Tp[:3, 3]), parent_rpy=_vec(urdf_rpy(Tp[:3, :3])),
+            child_xyz=_vec(Tc_inv[:3, 3]), child_rpy=_vec(urdf_rpy(Tc_inv[:3, :3])),
+            axes=_axis_specs(j, coords),
+        ))
+    return {
+        "generated_by": "pamkin (do not edit: regenerate with `pamkin urdf`)",
+        "source": Path(model.path).name,
+        "model": model.name,
+        "credits": model.credits,
+        "bodies": bodies,
+        "joints": joints,
+    }
+
+
+def atomic_write(path: Path, text: str | bytes) -> None:
+    """Write ``text`` to ``path`` atomically (temporary file in the same folder + rename)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = text.encode() if isinstance(text, str) else text
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_model_data(model: OsimModel, path: Path) -> Path:
+    """Write :func:`model_data` of ``model`` to a YAML file (atomically)."""
+    text = "# Generated by pamkin from an OpenSim model; regenerate with `pamkin urdf`.\n"
+    text += yaml.safe_dump(model_data(model), sort_keys=False, width=120)
+    atomic_write(Path(path), text)
+    return Path(path)
+
+
+def render_urdf(data_path: Path, name: str, xacro_file: Path = OSIM_XACRO) -> str:
+    """Run Xacro on ``xacro_file`` with the model data file ``data_path``; return the URDF text."""
+    import xacro  # noqa: PLC0415  (imported lazily: slow to import)
+
+    try:
+        doc = xacro.process_file(str(xacro_file), mappings={"data": str(Path(data_path).resolve()),
+                                                             "name": name})
+    except Exception as e:  # xacro raises its own XacroException and plain errors
+        raise BuildError(f"xacro failed on {xacro_file} with data {data_path}: {e}") from e
+    return doc.toprettyxml(indent="  ")
+
+
+def build_urdf(osim_path: str | os.PathLike, out_dir: Path, name: str | None = None) -> tuple[Path, Path]:
+    """Import ``osim_path``, write ``<name>.yaml`` and ``<name>.urdf`` into ``out_dir``.
+
+    Returns:
+        (data file, URDF file).
+    """
+    model = load_osim_file(osim_path)
+    name = name or Path(osim_path).stem
+    out_dir = Path(out_dir)
+    data_path = write_model_data(model, out_dir / f"{name}.yaml")
+    urdf = render_urdf(data_path, name)
+    urdf_path = out_dir / f"{name}.urdf"
+    atomic_write(urdf_path, urdf)
+    return data_path, urdf_path
+
+
+def source_hash() -> str:
+    """Hash of the Xacro sources and this module (part of the cache key of generated URDFs)."""
+    h = hashlib.sha256()
+    for p in sorted(ROBOT_DIR.glob("xacro/*.xacro")) + [OSIM_XACRO, Path(__file__),
+                                                          Path(__file__).with_name("osim.py")]:
+        h.update(p.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def cached_urdf(osim_path: str | os.PathLike) -> Path:
+    """URDF of any ``.osim`` built in a content-addressed cache folder.
+
+    The cache is ``$PAMKIN_CACHE`` or ``~/.cache/pamkin``; entries are keyed by the
+    file content and the Xacro sources, so an edited model is rebuilt.
+    """
+    h = hashlib.sha256(Path(osim_path).read_bytes()).hexdigest()[:16]
+    root = Path(os.environ.get("PAMKIN_CACHE", Path.home() / ".cache" / "pamkin"))
+    folder = root / f"{h}-{source_hash()}"
+    name = "model"
+    urdf = folder / f"{name}.urdf"
+    if not urdf.exists():
+        build_urdf(osim_path, folder, name)
+    return urdf
