@@ -9,6 +9,7 @@ import numpy as np
 
 from .kinematics import ConfigLike, Kinematics, KinematicsState
 from .osim import OsimModel, load_osim_file
+from .paths import PathResult, PathSet
 from .urdf_build import cached_urdf
 
 
@@ -32,6 +33,8 @@ class Model:
         self.urdf_path = Path(urdf_path)
         self.pin_model = pin.buildModelFromUrdf(str(urdf_path))
         self.kinematics = Kinematics(osim, self.pin_model)
+        self.paths = PathSet(self.kinematics, [m.name for m in osim.muscles],
+                             [m.points for m in osim.muscles])
 
     @property
     def coordinates(self) -> list[str]:
@@ -64,6 +67,23 @@ class Model:
     def point_jacobian(self, q: ConfigLike, body: str, point) -> np.ndarray:
         """Jacobian (N, 3, n_coordinates) of a point fixed in ``body`` w.r.t. the coordinates."""
         return self.kinematics.point_jacobian(q, body, point)
+
+    @property
+    def muscles(self) -> list[str]:
+        """Muscle names in ForceSet order."""
+        return list(self.paths.names)
+
+    def path_result(self, q: ConfigLike, moment_arms: bool = True) -> PathResult:
+        """Lengths and sparse moment arms (only spanned muscle × coordinate pairs)."""
+        return self.paths.evaluate(self.kinematics.forward(q), moment_arms=moment_arms)
+
+    def lengths(self, q: ConfigLike) -> np.ndarray:
+        """Musculotendon path lengths (N, n_muscles) [m]."""
+        return self.path_result(q, moment_arms=False).lengths
+
+    def moment_arms(self, q: ConfigLike) -> np.ndarray:
+        """Moment arms −∂L/∂q (N, n_muscles, n_coordinates) [m; m/m for translations]."""
+        return self.path_result(q).dense_moment_arms(len(self.coordinates))
 
     def random_q(self, n: int, seed: int | None = 0) -> np.ndarray:
         """``n`` configurations uniform over every coordinate's range (fixed seed by default)."""
