@@ -12,7 +12,7 @@ from .errors import (
     RangeWarning,
     UnsupportedFeatureError,
 )
-from .model import Model, load_osim
+from .model import Model, gait2392, load_osim
 
 __all__ = [
     "ConfigurationError",
@@ -22,6 +22,7 @@ __all__ = [
     "ParameterError",
     "RangeWarning",
     "UnsupportedFeatureError",
+    "gait2392",
     "load_osim",
 ]
 __version__ = "0.1.0"

@@ -10,7 +10,7 @@ import numpy as np
 from .kinematics import ConfigLike, Kinematics, KinematicsState
 from .osim import OsimModel, load_osim_file
 from .paths import PathResult, PathSet
-from .urdf_build import cached_urdf
+from .urdf_build import GAIT2392_DATA, GAIT2392_URDF, cached_urdf, load_model_data
 
 
 class Model:
@@ -103,4 +103,13 @@ def load_osim(path: str | os.PathLike) -> Model:
         pamkin.errors.UnsupportedFeatureError: It uses features pamkin does not implement.
     """
     osim = load_osim_file(path)
-    return Model(osim, cached_urdf(path))
+    return Model(osim, cached_urdf(osim))
+
+
+def gait2392() -> Model:
+    """The built-in Gait2392 model (project data ``robot/data/gait2392.yaml``, ``urdf/gait2392.urdf``).
+
+    Needs no OpenSim files: the data file holds the model imported from OpenSim's
+    ``gait2392_thelen2003muscle.osim`` (Delp et al., CC BY 3.0).
+    """
+    return Model(load_model_data(GAIT2392_DATA), GAIT2392_URDF)

@@ -747,3 +747,119 @@ def _read_point(rd: _Reader, p: ET.Element, muscle: ET.Element, body_names: set[
         rng = rd.floats(p, "range", 2)
         return ConditionalPathPoint(name, body, loc, coordinate=cn, range=rng)  # type: ignore[arg-type]
     return PathPoint(name, body, loc)  # type: ignore[arg-type]
+
+
+# --------------------------------------------------------------------------- plain-data form
+def function_to_dict(fn: ScalarFunction) -> dict:
+    """Plain-data form of a scalar function (for the project's YAML model files)."""
+    if isinstance(fn, Constant):
+        return {"type": "Constant", "value": fn.c}
+    if isinstance(fn, LinearFunction):
+        return {"type": "LinearFunction", "coefficients": [fn.slope, fn.intercept]}
+    if isinstance(fn, SimmSpline):
+        return {"type": "SimmSpline", "x": list(fn.x), "y": list(fn.y)}
+    if isinstance(fn, PolynomialFunction):
+        return {"type": "PolynomialFunction", "coefficients": list(fn.coefficients)}
+    if isinstance(fn, MultiplierFunction):
+        return {"type": "MultiplierFunction", "scale": fn.scale, "function": function_to_dict(fn.function)}
+    raise TypeError(f"cannot serialise {fn!r}")
+
+
+def function_from_dict(d: dict) -> ScalarFunction:
+    """Inverse of :func:`function_to_dict`."""
+    t = d["type"]
+    if t == "Constant":
+        return Constant(float(d["value"]))
+    if t == "LinearFunction":
+        return LinearFunction(float(d["coefficients"][0]), float(d["coefficients"][1]))
+    if t == "SimmSpline":
+        return SimmSpline(tuple(map(float, d["x"])), tuple(map(float, d["y"])))
+    if t == "PolynomialFunction":
+        return PolynomialFunction(tuple(map(float, d["coefficients"])))
+    if t == "MultiplierFunction":
+        return MultiplierFunction(function_from_dict(d["function"]), float(d["scale"]))
+    raise ValueError(f"unknown function type {t!r}")
+
+
+def _frame_to_dict(f: OffsetFrame) -> dict:
+    return {"name": f.name, "body": f.body, "translation": list(f.translation),
+            "orientation": list(f.orientation)}
+
+
+def _frame_from_dict(d: dict) -> OffsetFrame:
+    return OffsetFrame(d["name"], d["body"], tuple(map(float, d["translation"])),  # type: ignore[arg-type]
+                       tuple(map(float, d["orientation"])))  # type: ignore[arg-type]
+
+
+def _point_to_dict(p: AnyPathPoint) -> dict:
+    if isinstance(p, MovingPathPoint):
+        return {"type": "MovingPathPoint", "name": p.name, "body": p.body,
+                "functions": [function_to_dict(f) for f in p.functions], "coordinates": list(p.coordinates)}
+    d = {"type": type(p).__name__, "name": p.name, "body": p.body, "location": list(p.location)}
+    if isinstance(p, ConditionalPathPoint):
+        d.update(coordinate=p.coordinate, range=list(p.range))
+    return d
+
+
+def point_from_dict(d: dict) -> AnyPathPoint:
+    """A path point from its plain-data form (``type``: PathPoint, ConditionalPathPoint, MovingPathPoint)."""
+    t = d.get("type", "PathPoint")
+    if t == "MovingPathPoint":
+        return MovingPathPoint(d["name"], d["body"], tuple(function_from_dict(f) for f in d["functions"]),  # type: ignore[arg-type]
+                               tuple(d["coordinates"]))  # type: ignore[arg-type]
+    loc = tuple(float(v) for v in d["location"])
+    if len(loc) != 3:
+        raise ValueError(f"point {d.get('name')!r}: location needs 3 numbers")
+    if t == "ConditionalPathPoint":
+        return ConditionalPathPoint(d["name"], d["body"], loc, coordinate=d["coordinate"],  # type: ignore[arg-type]
+                                    range=tuple(map(float, d["range"])))  # type: ignore[arg-type]
+    if t != "PathPoint":
+        raise ValueError(f"unknown path point type {t!r}")
+    return PathPoint(d["name"], d["body"], loc)  # type: ignore[arg-type]
+
+
+def model_to_dict(model: OsimModel) -> dict:
+    """Lossless plain-data form of an imported model (what the project's YAML files hold)."""
+    return {
+        "name": model.name,
+        "source": Path(model.path).name,
+        "credits": model.credits,
+        "bodies": [{"name": b.name, "mass": b.mass, "mass_center": list(b.mass_center),
+                    "inertia": list(b.inertia),
+                    "meshes": [{"mesh_file": m.mesh_file, "scale_factors": list(m.scale_factors),
+                                "frame": _frame_to_dict(m.frame)} for m in b.meshes]}
+                   for b in model.bodies],
+        "joints": [{"name": j.name, "kind": j.kind, "parent_frame": _frame_to_dict(j.parent_frame),
+                    "child_frame": _frame_to_dict(j.child_frame), "coordinates": list(j.coordinates),
+                    "axes": [{"name": a.name, "coordinates": list(a.coordinates), "axis": list(a.axis),
+                              "function": function_to_dict(a.function)} for a in j.axes]}
+                   for j in model.joints],
+        "coordinates": [{"name": c.name, "joint": c.joint, "range": list(c.range),
+                         "default_value": c.default_value, "locked": c.locked, "clamped": c.clamped,
+                         "rotational": c.rotational} for c in model.coordinates],
+        "muscles": [{"name": m.name, "kind": m.kind, "params": dict(m.params),
+                     "points": [_point_to_dict(p) for p in m.points]} for m in model.muscles],
+    }
+
+
+def model_from_dict(d: dict, path: str = "<data>") -> OsimModel:
+    """Inverse of :func:`model_to_dict`."""
+    return OsimModel(
+        path=path,
+        name=d["name"],
+        bodies=tuple(Body(b["name"], float(b["mass"]), tuple(b["mass_center"]), tuple(b["inertia"]),
+                          tuple(MeshGeometry(m["mesh_file"], tuple(m["scale_factors"]),
+                                             _frame_from_dict(m["frame"])) for m in b.get("meshes", [])))
+                     for b in d["bodies"]),
+        joints=tuple(Joint(j["name"], j["kind"], _frame_from_dict(j["parent_frame"]),
+                           _frame_from_dict(j["child_frame"]),
+                           tuple(TransformAxis(a["name"], tuple(a["coordinates"]), tuple(a["axis"]),
+                                               function_from_dict(a["function"])) for a in j["axes"]),
+                           tuple(j["coordinates"])) for j in d["joints"]),
+        coordinates=tuple(Coordinate(c["name"], c["joint"], tuple(c["range"]), float(c["default_value"]),
+                                     bool(c["locked"]), bool(c["clamped"]), bool(c["rotational"]))
+                          for c in d["coordinates"]),
+        muscles=tuple(Muscle(m["name"], m["kind"], tuple(point_from_dict(p) for p in m["points"]),
+                             {k: float(v) for k, v in m["params"].items()}) for m in d["muscles"]),
+        credits=d.get("credits", ""),
+    )
