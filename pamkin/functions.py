@@ -137,10 +137,11 @@ class SimmSpline:
         b, c, d = self._coef
         k, dx = self._segment(x)
         out = ys[k] + dx * (b[k] + dx * (c[k] + dx * d[k]))
-        out = np.where(x < xs[0], ys[0] + (x - xs[0]) * b[0], out)
-        out = np.where(x > xs[-1], ys[-1] + (x - xs[-1]) * b[-1], out)
-        out = np.where(np.abs(x - xs[0]) <= _ROUNDOFF, ys[0], out)
+        # OpenSim's order of checks: outside the knots first, then "equal to an end knot"
         out = np.where(np.abs(x - xs[-1]) <= _ROUNDOFF, ys[-1], out)
+        out = np.where(np.abs(x - xs[0]) <= _ROUNDOFF, ys[0], out)
+        out = np.where(x > xs[-1], ys[-1] + (x - xs[-1]) * b[-1], out)
+        out = np.where(x < xs[0], ys[0] + (x - xs[0]) * b[0], out)
         return out
 
     def derivative(self, x: np.ndarray) -> np.ndarray:
@@ -149,15 +150,20 @@ class SimmSpline:
         b, c, d = self._coef
         k, dx = self._segment(x)
         out = b[k] + dx * (2.0 * c[k] + 3.0 * dx * d[k])
-        out = np.where(x < xs[0], b[0], out)
-        out = np.where(x > xs[-1], b[-1], out)
-        out = np.where(np.abs(x - xs[0]) <= _ROUNDOFF, b[0], out)
         out = np.where(np.abs(x - xs[-1]) <= _ROUNDOFF, b[-1], out)
+        out = np.where(np.abs(x - xs[0]) <= _ROUNDOFF, b[0], out)
+        out = np.where(x > xs[-1], b[-1], out)
+        out = np.where(x < xs[0], b[0], out)
         return out
 
     @property
     def is_constant(self) -> bool:
         return len(set(self.y)) == 1
+
+    @property
+    def coefficients(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Segment polynomial coefficients (b, c, d): y = y_k + b·dx + c·dx² + d·dx³."""
+        return self._coef
 
 
 def _simm_coefficients(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -30,6 +30,10 @@ from .osim import OsimModel
 #: coordinate order, or a mapping coordinate name -> scalar or (N,) array.
 ConfigLike = np.ndarray | Mapping[str, object]
 
+#: Values within this distance of a coordinate range are not flagged [rad or m]: .osim files
+#: store ranges rounded (Gait2392's knee minimum −2.0943951 is 2.4e-9 above −120°).
+RANGE_TOLERANCE = 1e-8
+
 
 @dataclass(frozen=True)
 class KinematicsState:
@@ -182,7 +186,7 @@ class Kinematics:
                                      f"(first at row {rows[0]})")
         if warn_range:
             lo, hi = self.ranges[:, 0], self.ranges[:, 1]
-            out = (arr < lo - 1e-12) | (arr > hi + 1e-12)
+            out = (arr < lo - RANGE_TOLERANCE) | (arr > hi + RANGE_TOLERANCE)
             if out.any():
                 names = sorted({self.coordinates[c] for c in np.nonzero(out)[1]})
                 warnings.warn(f"{int(out.any(axis=1).sum())} configuration(s) outside the coordinate "

@@ -9,7 +9,9 @@ import numpy as np
 
 from .kinematics import ConfigLike, Kinematics, KinematicsState
 from .osim import OsimModel, load_osim_file
+from .errors import UnsupportedFeatureError
 from .paths import PathResult, PathSet
+from .thelen2003 import ThelenParams, equilibrium
 from .urdf_build import GAIT2392_DATA, GAIT2392_URDF, cached_urdf, load_model_data
 
 
@@ -24,9 +26,16 @@ class Model:
         osim: The imported model description.
         urdf_path: The generated URDF.
         kinematics: Batched kinematics (Pinocchio-backed).
+        paths: Muscle paths (numpy reference engine).
+
+    Args:
+        osim: The imported model.
+        urdf_path: Its URDF (generated from the model data by Xacro).
+        engine: ``"compiled"`` (default; numba, parallel over configurations) or
+            ``"numpy"`` (the reference engine); both give the same numbers to round-off.
     """
 
-    def __init__(self, osim: OsimModel, urdf_path: Path) -> None:
+    def __init__(self, osim: OsimModel, urdf_path: Path, engine: str = "compiled") -> None:
         import pinocchio as pin  # noqa: PLC0415
 
         self.osim = osim
@@ -35,6 +44,22 @@ class Model:
         self.kinematics = Kinematics(osim, self.pin_model)
         self.paths = PathSet(self.kinematics, [m.name for m in osim.muscles],
                              [m.points for m in osim.muscles])
+        self._fast = None
+        if engine == "compiled":
+            from .fastpaths import FastPaths  # noqa: PLC0415
+
+            try:
+                self._fast = FastPaths(self.paths)
+            except TypeError:   # a function type without compiled form: numpy engine
+                self._fast = None
+        elif engine != "numpy":
+            raise ValueError(f"engine must be 'compiled' or 'numpy', not {engine!r}")
+        thelen = [m for m in osim.muscles if m.kind == "Thelen2003Muscle"]
+        self._unsupported_force = [m for m in osim.muscles if m.kind != "Thelen2003Muscle"]
+        self.thelen_params: ThelenParams | None = None
+        if thelen and not self._unsupported_force:
+            self.thelen_params = ThelenParams.from_osim_properties([m.params for m in thelen],
+                                                                   [m.name for m in thelen])
 
     @property
     def coordinates(self) -> list[str]:
@@ -73,9 +98,19 @@ class Model:
         """Muscle names in ForceSet order."""
         return list(self.paths.names)
 
-    def path_result(self, q: ConfigLike, moment_arms: bool = True) -> PathResult:
-        """Lengths and sparse moment arms (only spanned muscle × coordinate pairs)."""
-        return self.paths.evaluate(self.kinematics.forward(q), moment_arms=moment_arms)
+    def path_result(self, q: ConfigLike, moment_arms: bool = True, chunk: int = 65536) -> PathResult:
+        """Lengths and sparse moment arms (only spanned muscle × coordinate pairs).
+
+        Large batches are processed in chunks of ``chunk`` configurations (bounded memory).
+        """
+        q = self.kinematics.as_q(q)
+        if self._fast is not None:
+            L, R = self._fast.evaluate(q, moment_arms)
+            return PathResult(L, self.paths.pairs, R)
+        parts = [self.paths.evaluate(self.kinematics.forward(q[i:i + chunk], warn_range=False), moment_arms)
+                 for i in range(0, max(len(q), 1), chunk)]
+        return PathResult(np.concatenate([p.lengths for p in parts]), self.paths.pairs,
+                          np.concatenate([p.moment_arms for p in parts]) if moment_arms else None)
 
     def lengths(self, q: ConfigLike) -> np.ndarray:
         """Musculotendon path lengths (N, n_muscles) [m]."""
@@ -85,6 +120,71 @@ class Model:
         """Moment arms −∂L/∂q (N, n_muscles, n_coordinates) [m; m/m for translations]."""
         return self.path_result(q).dense_moment_arms(len(self.coordinates))
 
+    def _check_forces(self) -> ThelenParams:
+        if self._unsupported_force:
+            m = self._unsupported_force[0]
+            raise UnsupportedFeatureError(
+                self.osim.path, f"muscle forces are implemented for Thelen2003Muscle only; "
+                f"{len(self._unsupported_force)} muscle(s) are {m.kind} (kinematics, lengths and moment "
+                "arms work; use the gait2392_thelen2003muscle.osim variant for forces)",
+                element=m.kind, component=m.name)
+        assert self.thelen_params is not None
+        return self.thelen_params
+
+    def evaluate(self, q: ConfigLike, activation: float | np.ndarray = 1.0,
+                 rigid_tendon: bool = False) -> MuscleState:
+        """Lengths, moment arms, static forces and torques of every muscle, evaluated once.
+
+        Args:
+            q: Configurations (N, n_coordinates) [rad, m].
+            activation: Activation in [0, 1] (scalar, (n_muscles,) or (N, n_muscles)).
+            rigid_tendon: Use a rigid tendon instead of the compliant-tendon equilibrium.
+        """
+        params = self._check_forces()
+        res = self.path_result(q)
+        eq = equilibrium(res.lengths, params, activation, rigid_tendon=rigid_tendon)
+        return MuscleState(res, eq.tendon_force, eq)
+
+    def tendon_forces(self, q: ConfigLike, activation: float | np.ndarray = 1.0,
+                      rigid_tendon: bool = False) -> np.ndarray:
+        """Static (zero fibre velocity) tendon forces (N, n_muscles) [N], OpenSim's equilibrium."""
+        params = self._check_forces()
+        L = self.lengths(q)
+        return equilibrium(L, params, activation, rigid_tendon=rigid_tendon).tendon_force
+
+    def torques(self, q: ConfigLike, activation: float | np.ndarray = 1.0,
+                rigid_tendon: bool = False) -> np.ndarray:
+        """Muscle torques force × moment arm (N, n_muscles, n_coordinates) [N·m; N for translations]."""
+        st = self.evaluate(q, activation, rigid_tendon)
+        return st.dense_torques(len(self.coordinates))
+
+    def group_torques(self, q: ConfigLike, groups, activation: float | np.ndarray = 1.0) -> dict[str, np.ndarray]:
+        """Summed torque of each group, ``{group key: (N, n_coordinates)}`` [N·m].
+
+        Args:
+            groups: :class:`pamkin.groups.MuscleGroup` objects, or a mapping name -> muscle names.
+        """
+        T = self.torques(q, activation)
+        items = groups.items() if isinstance(groups, dict) else [(g.key, g.muscles) for g in groups]
+        out = {}
+        for key, muscles in items:
+            missing = [m for m in muscles if m not in self.paths.names]
+            if missing:
+                raise KeyError(f"group {key!r}: unknown muscles {missing}")
+            idx = [self.paths.names.index(m) for m in muscles]
+            out[key] = T[:, idx].sum(axis=1)
+        return out
+
+    def capacity(self, q: ConfigLike, activation: float | np.ndarray = 1.0) -> tuple[np.ndarray, np.ndarray]:
+        """Per-coordinate torque capacity envelopes at full activation.
+
+        Returns:
+            (positive, negative): (N, n_coordinates) sums of the positive and of the
+            negative muscle torques [N·m].
+        """
+        T = self.torques(q, activation)
+        return np.where(T > 0, T, 0.0).sum(axis=1), np.where(T < 0, T, 0.0).sum(axis=1)
+
     def random_q(self, n: int, seed: int | None = 0) -> np.ndarray:
         """``n`` configurations uniform over every coordinate's range (fixed seed by default)."""
         rng = np.random.default_rng(seed)
@@ -92,7 +192,7 @@ class Model:
         return lo + (hi - lo) * rng.random((n, len(lo)))
 
 
-def load_osim(path: str | os.PathLike) -> Model:
+def load_osim(path: str | os.PathLike, engine: str = "compiled") -> Model:
     """Load an OpenSim ``.osim`` model: import → Xacro → URDF (cached) → Pinocchio.
 
     Args:
@@ -103,13 +203,45 @@ def load_osim(path: str | os.PathLike) -> Model:
         pamkin.errors.UnsupportedFeatureError: It uses features pamkin does not implement.
     """
     osim = load_osim_file(path)
-    return Model(osim, cached_urdf(osim))
+    return Model(osim, cached_urdf(osim), engine=engine)
 
 
-def gait2392() -> Model:
+def gait2392(engine: str = "compiled") -> Model:
     """The built-in Gait2392 model (project data ``robot/data/gait2392.yaml``, ``urdf/gait2392.urdf``).
 
     Needs no OpenSim files: the data file holds the model imported from OpenSim's
     ``gait2392_thelen2003muscle.osim`` (Delp et al., CC BY 3.0).
     """
-    return Model(load_model_data(GAIT2392_DATA), GAIT2392_URDF)
+    return Model(load_model_data(GAIT2392_DATA), GAIT2392_URDF, engine=engine)
+
+
+class MuscleState:
+    """Muscle quantities of a batch of configurations (see :meth:`Model.evaluate`).
+
+    Attributes:
+        paths: Lengths and sparse moment arms.
+        tendon_forces: (N, n_muscles) [N].
+        equilibrium: The fibre/tendon equilibrium (fibre lengths, pennation, clamping).
+    """
+
+    def __init__(self, paths: PathResult, tendon_forces: np.ndarray, eq) -> None:
+        self.paths = paths
+        self.tendon_forces = tendon_forces
+        self.equilibrium = eq
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """(N, n_muscles) musculotendon lengths [m]."""
+        return self.paths.lengths
+
+    @property
+    def pair_torques(self) -> np.ndarray:
+        """(N, K) torques of the spanned (muscle, coordinate) pairs ``paths.pairs`` [N·m]."""
+        return self.tendon_forces[:, self.paths.pairs[:, 0]] * self.paths.moment_arms
+
+    def dense_torques(self, n_coordinates: int) -> np.ndarray:
+        """(N, n_muscles, n_coordinates) torques [N·m]."""
+        N, M = self.lengths.shape
+        out = np.zeros((N, M, n_coordinates))
+        out[:, self.paths.pairs[:, 0], self.paths.pairs[:, 1]] = self.pair_torques
+        return out

@@ -56,7 +56,7 @@ THELEN_PROPERTIES: dict[str, float] = {
     "KshapePassive": 5.0,
     "Af": 0.25,
     "Flen": 1.4,
-    "fv_linear_extrap": 0.95,
+    "fv_linear_extrap_threshold": 0.95,
     "maximum_pennation_angle": math.acos(0.1),
     "minimum_activation": 0.01,
 }

@@ -140,7 +140,9 @@ class PathSet:
         fixed_body, fixed_loc, moving = [], [], []
         point_ids: list[list[int]] = []
         cond: dict[int, tuple[int, float, float]] = {}   # point id -> (coord, lo, hi)
+        self._path_start, self._path_end = [], []
         for path in paths:
+            self._path_start.append(len(fixed_body))
             ids = []
             for pt in path:
                 pid = len(fixed_body)
@@ -156,6 +158,7 @@ class PathSet:
                     cond[pid] = (coord_index[pt.coordinate], pt.range[0], pt.range[1])
                 ids.append(pid)
             point_ids.append(ids)
+            self._path_end.append(len(fixed_body))
         self.n_points = len(fixed_body)
         self.point_body = np.array(fixed_body, dtype=int)
         self.point_local = np.array(fixed_loc, dtype=float).reshape(-1, 3)

@@ -1,0 +1,105 @@
+"""The ``pamkin`` command line: one entry point with subcommands.
+
+Run ``pamkin --help`` for the list and ``pamkin COMMAND --help`` for each command.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from .errors import PamkinError
+
+DEFAULT_OSIM = (Path(__file__).resolve().parents[2] / "shared" / "opensim-models" / "Gait2392_Simbody"
+                / "gait2392_thelen2003muscle.osim")
+
+
+def _load(osim: str | None):
+    import pamkin  # noqa: PLC0415
+
+    return pamkin.load_osim(osim) if osim else pamkin.gait2392()
+
+
+def cmd_urdf(args: argparse.Namespace) -> int:
+    from .urdf_build import build_gait2392  # noqa: PLC0415
+
+    osim = Path(args.osim) if args.osim else DEFAULT_OSIM
+    files = build_gait2392(osim, check=args.check)
+    if args.check:
+        if files:
+            print("stale (regenerate with `pamkin urdf`): " + ", ".join(str(f) for f in files))
+            return 1
+        print("robot/data/gait2392.yaml and urdf/gait2392.urdf are up to date")
+        return 0
+    for f in files:
+        print(f"wrote {f}")
+    return 0
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    model = _load(args.osim)
+    info = {
+        "model": model.osim.name,
+        "source": model.osim.path,
+        "bodies": model.bodies,
+        "coordinates": {c: list(r) for c, r in zip(model.coordinates, model.coordinate_ranges.tolist())},
+        "muscles": model.muscles,
+        "spanned_pairs": int(len(model.paths.pairs)),
+    }
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    print(f"{info['model']} ({info['source']})")
+    print(f"{len(model.bodies)} bodies: {', '.join(model.bodies)}")
+    print(f"{len(model.coordinates)} coordinates:")
+    for c, (lo, hi) in info["coordinates"].items():
+        print(f"  {c:20s} [{lo: .4f}, {hi: .4f}]")
+    print(f"{len(model.muscles)} muscles, {info['spanned_pairs']} muscle-coordinate pairs with a moment arm")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="pamkin",
+        description="Design PAM-actuated bipedal robots against OpenSim's Gait2392 human model. "
+                    "Without --osim, commands use the built-in Gait2392 data (robot/data, urdf/).")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    s = sub.add_parser("urdf", help="regenerate robot/data/gait2392.yaml and urdf/gait2392.urdf from an .osim",
+                       description="Import OpenSim's Gait2392 .osim, write the project data file "
+                                   "robot/data/gait2392.yaml and render urdf/gait2392.urdf with xacro.")
+    s.add_argument("--osim", help=f"the .osim file (default: {DEFAULT_OSIM})")
+    s.add_argument("--check", action="store_true", help="write nothing; exit 1 if the files are stale")
+    s.set_defaults(func=cmd_urdf)
+
+    s = sub.add_parser("info", help="list a model's bodies, coordinates and muscles")
+    s.add_argument("--osim", help="an .osim file (default: built-in Gait2392)")
+    s.add_argument("--json", action="store_true", help="machine-readable output")
+    s.set_defaults(func=cmd_info)
+
+    from . import cli_torques  # noqa: PLC0415
+
+    cli_torques.add_parsers(sub)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except PamkinError as e:
+        print(f"pamkin {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    np.set_printoptions(precision=4, suppress=True)
+    sys.exit(main())

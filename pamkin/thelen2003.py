@@ -1,0 +1,720 @@
+"""Static equilibrium of OpenSim 4.6's ``Thelen2003Muscle``, vectorized with numpy.
+
+At zero fibre velocity the force-velocity multiplier of the Thelen (2003) model
+is exactly 1, so the musculotendon equilibrium that OpenSim's
+``Thelen2003Muscle::computeInitialFiberEquilibrium`` finds (with zero speeds)
+is the root, in fibre length ``l``, of::
+
+    Fmax·(a·fL(l/l0) + fPE(l/l0))·cos(alpha(l)) = Fmax·fT((lMT − l·cos(alpha(l)))/lTs)
+
+with the fixed-width pennation model ``l·sin(alpha) = l0·sin(alpha0)`` (constant
+parallelogram height ``h``). The curves are OpenSim's (see
+:func:`force_length_active`, :func:`force_length_passive`,
+:func:`tendon_force_length`); activation is clamped to
+``[minimum_activation, 1]`` as OpenSim's activation model does.
+
+**Minimum fibre length.** OpenSim keeps the fibre at or above the length at
+which the pennation angle reaches ``maximum_pennation_angle`` (default
+``acos(0.1)`` ≈ 84.26°): ``l_min = h / sin(alpha_max)``. For an unpennated
+muscle (``h = 0``) this is 0. When even the shortest admissible fibre pulls
+harder along the tendon than the tendon does (always the case when the whole
+musculotendon is shorter than ``lTs + l_min·cos(alpha_max)``, i.e. the tendon
+is slack), OpenSim's Newton search stops at ``l_min`` without raising and
+reports the fibre *clamped* there: tendon force ``Fmax·fT(tendon strain)``
+with the tendon length that this fibre length leaves (0 for a slack tendon),
+zero active fibre force. :func:`equilibrium` reproduces exactly that and
+flags those entries in :attr:`Equilibrium.clamped`.
+
+One path-dependent quirk of OpenSim is reproduced too: for an unpennated muscle
+(``l_min = 0``) whose equilibrium fibre would be only micrometres long, OpenSim's
+Newton search can land on ``l = 0``, where its slope is 0/0, and stay there; it
+then reports the fibre clamped at 0 and the tendon force ``Fmax·fT(lMT/lTs)``.
+:func:`equilibrium` replays OpenSim's search (vectorized) to find those entries
+(``opensim_search=False`` skips this and keeps the force continuous in ``lMT``).
+
+The root itself is found for all configurations and muscles at once with a
+bracketed, safeguarded Newton iteration on the fibre length along the tendon
+(bisection whenever a Newton step would leave the bracket), to a residual far
+below OpenSim's own tolerance of ``1e-8·Fmax``. Where OpenSim's search would
+fail (it then raises ``MuscleCannotEquilibrate``; never seen on Gait2392) the
+true equilibrium is returned.
+
+Parameters that only matter away from zero fibre velocity (``af``, ``flen``,
+``max_contraction_velocity``, ``fv_linear_extrap_threshold``) are carried in
+:class:`ThelenParams` so that a model's muscles round-trip, but do not change
+any result here.
+
+Reference: D. G. Thelen, "Adjustment of muscle mechanics model parameters to
+simulate dynamic contractions in older adults", J. Biomech. Eng. 125 (2003);
+OpenSim 4.6 ``Thelen2003Muscle`` and ``MuscleFixedWidthPennationModel``.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import numpy as np
+
+from pamkin.errors import ConfigurationError, OsimError, ParameterError, UnsupportedFeatureError
+
+__all__ = [
+    "Equilibrium",
+    "ThelenParams",
+    "equilibrium",
+    "force_length_active",
+    "force_length_passive",
+    "minimum_fiber_length",
+    "params_from_osim_xml",
+    "tendon_force",
+    "tendon_force_length",
+]
+
+#: Tendon toe region of OpenSim's Thelen2003Muscle: exponential shape factor and
+#: normalized force at the end of the toe (Thelen 2003).
+_K_TOE = 3.0
+_F_TOE = 0.33
+#: exp(3) once.
+_E3 = math.exp(_K_TOE)
+#: OpenSim treats an optimal pennation angle at or below machine epsilon as unpennated.
+_EPS = float(np.finfo(float).eps)
+#: SimTK::SignificantReal (eps^(7/8)): OpenSim's threshold for "maximum pennation angle is zero".
+_SIGNIFICANT_REAL = _EPS ** 0.875
+
+#: ThelenParams field -> (Thelen2003Muscle property name in the .osim file, OpenSim 4.6 default).
+#: ``None`` as default means the property is required.
+OSIM_PROPERTIES: dict[str, tuple[str, float | None]] = {
+    "max_isometric_force": ("max_isometric_force", None),
+    "optimal_fiber_length": ("optimal_fiber_length", None),
+    "tendon_slack_length": ("tendon_slack_length", None),
+    "pennation_angle_at_optimal": ("pennation_angle_at_optimal", 0.0),
+    "fmax_tendon_strain": ("FmaxTendonStrain", 0.04),
+    "fmax_muscle_strain": ("FmaxMuscleStrain", 0.6),
+    "kshape_active": ("KshapeActive", 0.45),
+    "kshape_passive": ("KshapePassive", 5.0),
+    "af": ("Af", 0.25),
+    "flen": ("Flen", 1.4),
+    "max_contraction_velocity": ("max_contraction_velocity", 10.0),
+    "fv_linear_extrap_threshold": ("fv_linear_extrap_threshold", 0.95),
+    "maximum_pennation_angle": ("maximum_pennation_angle", math.acos(0.1)),
+    "minimum_activation": ("minimum_activation", 0.01),
+}
+
+
+# ----------------------------------------------------------------------------------------------
+# Curves
+# ----------------------------------------------------------------------------------------------
+
+
+def _toe(fmax_tendon_strain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Strain at the end of the toe region and slope of the linear region (normalized)."""
+    e0 = np.asarray(fmax_tendon_strain, dtype=float)
+    e_toe = 99.0 * e0 * _E3 / (166.0 * _E3 - 67.0)
+    k_lin = 0.67 / (e0 - e_toe)
+    return e_toe, k_lin
+
+
+def tendon_force_length(normalized_tendon_length: np.ndarray,
+                        fmax_tendon_strain: float | np.ndarray = 0.04) -> np.ndarray:
+    """Thelen2003 tendon force-length curve fT, as in OpenSim 4.6 (``calcfse``).
+
+    With strain ``e = lT/lTs − 1`` and ``e0 = fmax_tendon_strain``: 0 for ``e ≤ 0``;
+    an exponential toe ``0.33·(exp(3·e/e_toe) − 1)/(exp(3) − 1)`` up to
+    ``e_toe = 99·e0·exp(3)/(166·exp(3) − 67)`` (≈ 0.609·e0), where fT = 0.33; then the
+    line ``k_lin·(e − e_toe) + 0.33`` with ``k_lin = 0.67/(e0 − e_toe)``, which reaches
+    fT = 1 at ``e = e0`` and continues unbounded. Value and slope are continuous at e_toe.
+
+    Args:
+        normalized_tendon_length: Tendon length over tendon slack length, lT/lTs [-].
+        fmax_tendon_strain: Tendon strain at maximum isometric force, e0 [-]; broadcasts.
+
+    Returns:
+        Tendon force over maximum isometric force [-], broadcast shape.
+    """
+    return _tendon_curve(normalized_tendon_length, fmax_tendon_strain)[0]
+
+
+def _tendon_curve(lt_n: np.ndarray, e0: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """fT and dfT/d(lT/lTs)."""
+    e = np.asarray(lt_n, dtype=float) - 1.0
+    e_toe, k_lin = _toe(e0)
+    scale = _F_TOE / (_E3 - 1.0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        ex = np.exp(_K_TOE * np.minimum(e, e_toe) / e_toe)
+    toe = e > 0.0
+    f = np.where(e > e_toe, k_lin * (e - e_toe) + _F_TOE, np.where(toe, scale * (ex - 1.0), 0.0))
+    df = np.where(e > e_toe, k_lin + 0.0 * e, np.where(toe, scale * _K_TOE / e_toe * ex, 0.0))
+    return f, df
+
+
+def force_length_active(normalized_fiber_length: np.ndarray,
+                        kshape_active: float | np.ndarray = 0.45) -> np.ndarray:
+    """Thelen2003 active force-length curve fL (OpenSim ``calcfal``): a Gaussian.
+
+    ``fL = exp(−(lM/l0 − 1)² / kshape_active)``; 1 at optimal fibre length, never 0.
+
+    Args:
+        normalized_fiber_length: Fibre length over optimal fibre length, lM/l0 [-].
+        kshape_active: Shape factor (variance) of the Gaussian [-]; broadcasts.
+
+    Returns:
+        Active force multiplier [-], broadcast shape.
+    """
+    return _active_curve(normalized_fiber_length, kshape_active)[0]
+
+
+def _active_curve(lm_n: np.ndarray, k: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """fL and dfL/d(lM/l0)."""
+    t = np.asarray(lm_n, dtype=float) - 1.0
+    f = np.exp(-t * t / k)
+    return f, -2.0 * t / k * f
+
+
+def force_length_passive(normalized_fiber_length: np.ndarray,
+                         fmax_muscle_strain: float | np.ndarray = 0.6,
+                         kshape_passive: float | np.ndarray = 5.0) -> np.ndarray:
+    """Thelen2003 passive fibre force-length curve fPE (OpenSim ``calcfpe``).
+
+    ``fPE = (exp(kPE·(lM/l0 − 1)/e0M) − 1)/(exp(kPE) − 1)`` for ``lM/l0 > 1``, else 0;
+    it equals 1 at ``lM/l0 = 1 + e0M``.
+
+    Args:
+        normalized_fiber_length: Fibre length over optimal fibre length, lM/l0 [-].
+        fmax_muscle_strain: Passive fibre strain at maximum isometric force, e0M [-].
+        kshape_passive: Exponential shape factor kPE [-].
+
+    Returns:
+        Passive force multiplier [-], broadcast shape.
+    """
+    return _passive_curve(normalized_fiber_length, fmax_muscle_strain, kshape_passive)[0]
+
+
+def _passive_curve(lm_n: np.ndarray, e0: float | np.ndarray,
+                   k: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """fPE and dfPE/d(lM/l0)."""
+    s = np.asarray(lm_n, dtype=float) - 1.0
+    denom = np.expm1(k)
+    with np.errstate(over="ignore"):
+        ex = np.exp(k * np.maximum(s, 0.0) / e0)
+    f = np.where(s > 0.0, (ex - 1.0) / denom, 0.0)
+    df = np.where(s > 0.0, k / e0 * ex / denom, 0.0)
+    return f, df
+
+
+# ----------------------------------------------------------------------------------------------
+# Parameters
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class ThelenParams:
+    """Per-muscle parameters of OpenSim's ``Thelen2003Muscle``; one entry per muscle.
+
+    Every array field has shape ``(n_muscles,)`` (scalars broadcast); arrays are stored
+    as read-only float copies and checked on construction (:meth:`validate`). Optional
+    fields default to OpenSim 4.6's property defaults (see :data:`OSIM_PROPERTIES`).
+
+    Attributes:
+        max_isometric_force: Fmax [N].
+        optimal_fiber_length: l0 [m].
+        tendon_slack_length: lTs [m].
+        pennation_angle_at_optimal: alpha0, pennation at optimal fibre length [rad].
+        fmax_tendon_strain: Tendon strain at Fmax, e0 (``FmaxTendonStrain``) [-].
+        fmax_muscle_strain: Passive fibre strain at Fmax, e0M (``FmaxMuscleStrain``) [-].
+        kshape_active: Gaussian shape factor of fL (``KshapeActive``) [-].
+        kshape_passive: Exponential shape factor of fPE (``KshapePassive``) [-].
+        af: Force-velocity shape factor (``Af``) [-]; no effect at zero velocity.
+        flen: Maximum normalized lengthening force (``Flen``) [-]; no effect at zero velocity.
+        max_contraction_velocity: [l0/s]; no effect at zero velocity.
+        fv_linear_extrap_threshold: Force-velocity extrapolation threshold [-]; no effect
+            at zero velocity.
+        maximum_pennation_angle: alpha_max; sets the minimum fibre length [rad].
+        minimum_activation: Lower clamp of activation [-].
+        names: Muscle names (empty, or one per muscle), used in error messages.
+    """
+
+    max_isometric_force: np.ndarray
+    optimal_fiber_length: np.ndarray
+    tendon_slack_length: np.ndarray
+    pennation_angle_at_optimal: np.ndarray
+    fmax_tendon_strain: np.ndarray
+    fmax_muscle_strain: np.ndarray
+    kshape_active: np.ndarray
+    kshape_passive: np.ndarray
+    af: np.ndarray | None = None
+    flen: np.ndarray | None = None
+    max_contraction_velocity: np.ndarray | None = None
+    fv_linear_extrap_threshold: np.ndarray | None = None
+    maximum_pennation_angle: np.ndarray | None = None
+    minimum_activation: np.ndarray | None = None
+    names: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        arrays = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "names"}
+        sizes = [np.size(v) for v in arrays.values() if v is not None and np.ndim(v) > 0]
+        n = max(sizes, default=1)
+        for key, value in arrays.items():
+            if value is None:
+                value = OSIM_PROPERTIES[key][1]
+            arr = np.asarray(value, dtype=float)
+            if arr.ndim > 1 or (arr.ndim == 1 and arr.shape[0] != n):
+                raise ParameterError(f"{key} has shape {arr.shape}, expected ({n},)")
+            arr = np.array(np.broadcast_to(arr, (n,)), dtype=float)
+            arr.setflags(write=False)
+            object.__setattr__(self, key, arr)
+        names = tuple(str(s) for s in self.names)
+        if names and len(names) != n:
+            raise ParameterError(f"names has {len(names)} entries for {n} muscles")
+        object.__setattr__(self, "names", names)
+        self.validate()
+
+    @property
+    def n_muscles(self) -> int:
+        """Number of muscles."""
+        return int(self.max_isometric_force.shape[0])
+
+    def muscle_name(self, i: int) -> str:
+        """Name of muscle ``i`` (``"muscle #i"`` when no names were given)."""
+        return self.names[i] if self.names else f"muscle #{i}"
+
+    def validate(self) -> None:
+        """Check every parameter's range (OpenSim 4.6's checks plus physical ones).
+
+        Raises:
+            ParameterError: naming the first offending muscle and parameter, e.g. for a
+                non-positive ``optimal_fiber_length``, ``max_isometric_force`` or
+                ``tendon_slack_length``, a pennation angle outside ``[0, pi/2)``, a
+                non-finite value, ``flen <= 1``, ``maximum_pennation_angle`` not above
+                ``pennation_angle_at_optimal`` or ``minimum_activation`` outside ``[0, 1)``.
+        """
+        half_pi = math.pi / 2
+        checks: list[tuple[str, np.ndarray, str]] = [
+            ("max_isometric_force", self.max_isometric_force > 0, "must be > 0 N"),
+            ("optimal_fiber_length", self.optimal_fiber_length > 0, "must be > 0 m"),
+            ("tendon_slack_length", self.tendon_slack_length > 0, "must be > 0 m"),
+            ("pennation_angle_at_optimal",
+             (self.pennation_angle_at_optimal >= 0) & (self.pennation_angle_at_optimal < half_pi),
+             "must lie in [0, pi/2) rad"),
+            ("fmax_tendon_strain", self.fmax_tendon_strain > 0, "must be > 0"),
+            ("fmax_muscle_strain", self.fmax_muscle_strain > 0, "must be > 0"),
+            ("kshape_active", self.kshape_active > 0, "must be > 0"),
+            ("kshape_passive", self.kshape_passive > 0, "must be > 0"),
+            ("af", self.af > 0, "must be > 0"),
+            ("flen", self.flen > 1, "must be > 1"),
+            ("max_contraction_velocity", self.max_contraction_velocity > 0, "must be > 0"),
+            ("fv_linear_extrap_threshold", self.fv_linear_extrap_threshold > 1 / self.flen,
+             "must be > 1/flen"),
+            ("maximum_pennation_angle",
+             (self.maximum_pennation_angle > self.pennation_angle_at_optimal)
+             & (self.maximum_pennation_angle <= half_pi),
+             "must exceed pennation_angle_at_optimal and be <= pi/2 rad"),
+            ("minimum_activation", (self.minimum_activation >= 0) & (self.minimum_activation < 1),
+             "must lie in [0, 1)"),
+        ]
+        for key, ok, rule in checks:
+            values = getattr(self, key)
+            bad = np.flatnonzero(~(ok & np.isfinite(values)))
+            if bad.size:
+                i = int(bad[0])
+                raise ParameterError(f"{self.muscle_name(i)}: {key} {rule} (got {values[i]!r})")
+
+    @classmethod
+    def from_osim_properties(cls, properties: list[dict[str, float]],
+                             names: tuple[str, ...] | list[str] = ()) -> ThelenParams:
+        """Build from one dict per muscle keyed by OpenSim property names.
+
+        Args:
+            properties: e.g. ``{"max_isometric_force": 819.0, "FmaxTendonStrain": 0.033, ...}``;
+                absent optional properties take OpenSim 4.6's defaults, other keys are ignored.
+            names: Muscle names.
+
+        Raises:
+            ParameterError: a required property is missing or a value is out of range.
+        """
+        names = tuple(names)
+        columns: dict[str, list[float]] = {key: [] for key in OSIM_PROPERTIES}
+        for i, props in enumerate(properties):
+            for key, (osim_name, default) in OSIM_PROPERTIES.items():
+                if osim_name in props:
+                    columns[key].append(float(props[osim_name]))
+                elif default is None:
+                    who = names[i] if names else f"muscle #{i}"
+                    raise ParameterError(f"{who}: missing required property {osim_name}")
+                else:
+                    columns[key].append(default)
+        return cls(**{k: np.asarray(v, dtype=float) for k, v in columns.items()}, names=names)
+
+
+def _parallelogram_height(l0: np.ndarray, alpha0: np.ndarray) -> np.ndarray:
+    """h = l0·sin(alpha0); 0 where OpenSim treats the muscle as unpennated (alpha0 <= eps).
+
+    (OpenSim still uses its ``h`` <= 2.3e-16·l0 there for the minimum fibre length; taking 0
+    keeps the geometry consistent and changes nothing measurable.)
+    """
+    return np.where(alpha0 > _EPS, l0 * np.sin(alpha0), 0.0)
+
+
+def minimum_fiber_length(params: ThelenParams) -> np.ndarray:
+    """OpenSim's minimum fibre length of each muscle (fixed-width pennation model) [m].
+
+    ``h / sin(alpha_max)`` with parallelogram height ``h = l0·sin(alpha0)``: the fibre
+    length at which the pennation angle reaches ``maximum_pennation_angle``. It is 0 for
+    an unpennated muscle (OpenSim 4.6 applies no other lower bound).
+
+    Args:
+        params: Muscle parameters.
+
+    Returns:
+        (n_muscles,) minimum fibre length [m].
+    """
+    h = _parallelogram_height(params.optimal_fiber_length, params.pennation_angle_at_optimal)
+    amax = params.maximum_pennation_angle
+    return np.where(amax > _SIGNIFICANT_REAL, h / np.sin(amax), 0.01 * params.optimal_fiber_length)
+
+
+# ----------------------------------------------------------------------------------------------
+# Equilibrium
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class Equilibrium:
+    """Static musculotendon equilibrium; every array has the shape of ``lmt``.
+
+    Attributes:
+        fiber_length: Fibre length lM [m] (the minimum fibre length where clamped).
+        normalized_fiber_length: lM/l0 [-].
+        pennation_angle: alpha [rad].
+        tendon_length: lT = lMT − lM·cos(alpha) [m].
+        tendon_force: Fmax·fT(lT/lTs) [N]; the musculotendon force.
+        active_fiber_force: Fmax·a·fL along the fibre [N]; 0 where clamped (as OpenSim).
+        passive_fiber_force: Fmax·fPE along the fibre [N].
+        clamped: True where the fibre sits at its minimum length (no equilibrium above it).
+    """
+
+    fiber_length: np.ndarray
+    normalized_fiber_length: np.ndarray
+    pennation_angle: np.ndarray
+    tendon_length: np.ndarray
+    tendon_force: np.ndarray
+    active_fiber_force: np.ndarray
+    passive_fiber_force: np.ndarray
+    clamped: np.ndarray
+
+
+def _prepare(lmt: np.ndarray, params: ThelenParams,
+             activation: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Check the inputs; return lengths and activation clamped to [minimum_activation, 1]."""
+    lmt = np.asarray(lmt, dtype=float)
+    if lmt.ndim == 0 or lmt.shape[-1] != params.n_muscles:
+        raise ConfigurationError(
+            f"musculotendon lengths have shape {lmt.shape}; the last axis must have "
+            f"{params.n_muscles} entries (one per muscle)")
+    try:
+        act = np.broadcast_to(np.asarray(activation, dtype=float), lmt.shape)
+    except ValueError:
+        raise ConfigurationError(f"activation of shape {np.shape(activation)} does not broadcast "
+                                 f"to the lengths' shape {lmt.shape}") from None
+    if not np.all(np.isfinite(act)):
+        raise ConfigurationError("activation must be finite")
+    act = np.clip(act, params.minimum_activation, 1.0)
+    return lmt, act
+
+
+#: Outcomes of OpenSim's equilibrium search (``Thelen2003Muscle::initMuscleState``).
+_CONVERGED, _AT_LOWER_BOUND, _FAILED = 0, 1, 2
+
+
+def _opensim_search(lmt: np.ndarray, a: np.ndarray, p: dict[str, np.ndarray], h: np.ndarray,
+                    pennated: np.ndarray, lmin: np.ndarray, xmin: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Replay OpenSim 4.6's damped Newton search for the fibre length (flat arrays).
+
+    OpenSim (``Thelen2003Muscle::initMuscleState``) starts with the tendon at 1.01 × its
+    slack length, takes Newton steps on the fibre length, halves a step (down to
+    sqrt(eps)) until the force error drops, raises any iterate below the minimum fibre
+    length to it, and stops after 20 iterations or when the force error is below
+    ``max(1e-8·Fmax, 10·SignificantReal)``. It then reports *converged*, *at lower bound*
+    (not converged and the fibre at its minimum length: OpenSim clamps it there) or fails.
+
+    The path matters where the fibre is extremely short: for an unpennated muscle the
+    minimum fibre length is 0, and once an iterate reaches 0 the Newton slope is 0/0, so
+    OpenSim stays at 0 and reports the fibre clamped even though an equilibrium exists a
+    few micrometres above it. Replaying the search is the only way to reproduce that.
+    At zero velocity the force-velocity multiplier OpenSim uses is exactly 1.
+
+    Returns:
+        (status, fibre length) per entry; status is one of ``_CONVERGED``,
+        ``_AT_LOWER_BOUND``, ``_FAILED``.
+    """
+    l0, lts, fmax = p["optimal_fiber_length"], p["tendon_slack_length"], p["max_isometric_force"]
+    amax = p["maximum_pennation_angle"]
+    sin_amax = np.sin(amax)
+    tol = np.maximum(1e-8 * fmax, 10.0 * _SIGNIFICANT_REAL)
+    sqrt_eps = math.sqrt(_EPS)
+
+    def force_error(lce, i):
+        """OpenSim's positionFunc + multipliersFunc + ferrFunc (fv = 1)."""
+        ratio = h[i] / lce
+        phi = np.where(pennated[i] & (lce > lmin[i]) & (ratio < sin_amax[i]),
+                       np.arcsin(np.clip(ratio, -1.0, 1.0)), np.where(pennated[i], amax[i], 0.0))
+        cos = np.cos(phi)
+        tl = lmt[i] - lce * cos
+        fl, dfl = _active_curve(lce / l0[i], p["kshape_active"][i])
+        fpe, dfpe = _passive_curve(lce / l0[i], p["fmax_muscle_strain"][i], p["kshape_passive"][i])
+        fse, dfse = _tendon_curve(tl / lts[i], p["fmax_tendon_strain"][i])
+        fm = (a[i] * fl + fpe) * fmax[i]
+        ferr = fm * cos - fse * fmax[i]
+        # OpenSim's partialsFunc (singular at lce = 0 for an unpennated muscle: 0/0 = NaN).
+        h2 = h[i] * h[i]
+        dcos = h2 / (lce ** 3 * np.sqrt(1.0 - h2 / (lce * lce)))
+        dfm_at = (a[i] * dfl + dfpe) * fmax[i] / l0[i] * cos + fm * dcos
+        dphi = -h[i] / (lce * lce * np.sqrt(1.0 - ratio * ratio))
+        dtl = -cos + lce * np.sin(phi) * dphi
+        dft = dfse * dtl * fmax[i] / lts[i]
+        return ferr, dfm_at - dft
+
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        n = lmt.size
+        # Starting guess: MuscleFixedWidthPennationModel::calcFiberLength(lMT, 1.01·lTs).
+        x0 = lmt - 1.01 * lts
+        lce = np.where(x0 >= xmin, np.hypot(h, x0), lmin)
+        ferr, slope = force_error(lce, np.arange(n))
+        for _ in range(20):
+            i = np.flatnonzero(np.abs(ferr) > tol)  # NaN compares False: OpenSim stops too
+            if i.size == 0:
+                break
+            prev_err, prev_lce, d = ferr[i], lce[i], slope[i]
+            step = np.ones(i.size)
+            cur_lce, cur_err, cur_slope = prev_lce.copy(), prev_err.copy(), d.copy()
+            inner = np.arange(i.size)  # entries still halving their step
+            while inner.size:
+                delta = -step[inner] * prev_err[inner] / d[inner]
+                big = np.abs(delta) > _SIGNIFICANT_REAL
+                trial = np.where(big, prev_lce[inner] + delta,
+                                 prev_lce[inner] - np.sign(np.nan_to_num(delta)) * sqrt_eps)
+                step[inner] = np.where(big, step[inner], 0.0)
+                trial = np.where(trial < lmin[i[inner]], lmin[i[inner]], trial)
+                e, s = force_error(trial, i[inner])
+                cur_lce[inner], cur_err[inner], cur_slope[inner] = trial, e, s
+                stop = (step[inner] <= sqrt_eps) | ~(np.abs(e) >= np.abs(prev_err[inner]))
+                step[inner] *= 0.5
+                inner = inner[~stop]
+            lce[i], ferr[i], slope[i] = cur_lce, cur_err, cur_slope
+        status = np.where(np.abs(ferr) < tol, _CONVERGED,
+                          np.where(lce <= lmin, _AT_LOWER_BOUND, _FAILED))
+    return status, lce
+
+
+def equilibrium(lmt: np.ndarray, params: ThelenParams, activation: float | np.ndarray = 1.0,
+                rigid_tendon: bool = False, *, opensim_search: bool = True,
+                max_iterations: int = 100) -> Equilibrium:
+    """Static (zero fibre velocity) equilibrium of OpenSim 4.6 Thelen2003 muscles.
+
+    Args:
+        lmt: (..., n_muscles) musculotendon lengths [m], e.g. (N configurations, n_muscles).
+            NaN entries give NaN results.
+        params: Muscle parameters.
+        activation: Activation in [0, 1], scalar or broadcastable to ``lmt``; clamped to
+            ``[minimum_activation, 1]`` like OpenSim.
+        rigid_tendon: If True, the tendon is inextensible at its slack length: the fibre
+            length follows from geometry (``lM·cos(alpha) = lMT − lTs``) and the force is
+            ``Fmax·(a·fL + fPE)·cos(alpha)``. Where ``lMT − lTs`` is at or below the minimum
+            fibre length along the tendon (``l_min·cos(alpha_max)``), the fibre is clamped at
+            ``l_min``, the tendon is slack (``lT = lMT − l_min·cos(alpha_max) ≤ lTs``) and
+            the force is 0 (OpenSim's ``calcInextensibleTendonActiveFiberForce`` also gives
+            0 there).
+        opensim_search: If True (default), replay OpenSim's own Newton search to decide
+            where OpenSim leaves the fibre clamped at its minimum length although an
+            equilibrium exists above it (only seen for unpennated muscles whose fibre would
+            be micrometres long; see :func:`_opensim_search`). If False, the fibre is
+            clamped only where no equilibrium exists above the minimum length, which makes
+            the force a continuous function of ``lmt``.
+        max_iterations: Iteration limit of the root search (it normally stops after 5–15).
+
+    Returns:
+        The equilibrium, every field shaped like ``lmt``.
+
+    Raises:
+        ConfigurationError: ``lmt``'s last axis does not match the number of muscles, or
+            ``activation`` is not finite or does not broadcast.
+    """
+    lmt, act = _prepare(lmt, params, activation)
+    shape = lmt.shape
+    p = {k: np.broadcast_to(getattr(params, k), shape).ravel() for k in OSIM_PROPERTIES}
+    lmt_f, a = lmt.ravel(), act.ravel()
+    l0, lts, fmax = p["optimal_fiber_length"], p["tendon_slack_length"], p["max_isometric_force"]
+    h = _parallelogram_height(l0, p["pennation_angle_at_optimal"])
+    pennated = h > 0.0
+    lmin = np.broadcast_to(minimum_fiber_length(params), shape).ravel()
+    cos_max = np.where(pennated, np.cos(p["maximum_pennation_angle"]), 1.0)
+    xmin = lmin * cos_max  # minimum fibre length along the tendon
+
+    def residual(x, idx, need_slope=True):
+        """Normalized force error (fibre along tendon − tendon) at fibre-along-tendon x."""
+        hh = h[idx]
+        lm = np.hypot(x, hh)
+        cos = np.where(lm > 0.0, x / np.where(lm > 0.0, lm, 1.0), 1.0)
+        lm_n = lm / l0[idx]
+        fl, dfl = _active_curve(lm_n, p["kshape_active"][idx])
+        fpe, dfpe = _passive_curve(lm_n, p["fmax_muscle_strain"][idx], p["kshape_passive"][idx])
+        ft, dft = _tendon_curve((lmt_f[idx] - x) / lts[idx], p["fmax_tendon_strain"][idx])
+        fm = a[idx] * fl + fpe
+        g = fm * cos - ft
+        if not need_slope:
+            return g, None
+        curv = np.where(hh > 0.0, hh * hh / np.where(lm > 0.0, lm, 1.0) ** 3, 0.0)
+        dg = (a[idx] * dfl + dfpe) / l0[idx] * cos * cos + fm * curv + dft / lts[idx]
+        return g, dg
+
+    n = lmt_f.size
+    x = np.full(n, np.nan)
+    clamped = np.zeros(n, dtype=bool)
+    valid = np.isfinite(lmt_f)
+
+    if rigid_tendon:
+        xr = lmt_f - lts
+        ok = valid & (xr > xmin)
+        clamped = valid & ~ok
+        x[ok] = xr[ok]
+    else:
+        xhi_all = lmt_f - lts  # fibre along tendon that leaves the tendon exactly slack
+        g_lo = np.full(n, np.nan)
+        idx = np.flatnonzero(valid & (xhi_all > xmin))
+        g_lo[idx] = residual(xmin[idx], idx, need_slope=False)[0]
+        clamped = valid & ~(g_lo < 0.0)  # includes slack (xhi <= xmin) and "fibre too strong"
+        # Starting guess: OpenSim's (tendon at 1.01 × slack length), or OpenSim's answer.
+        xi = lmt_f - 1.01 * lts
+        if opensim_search:
+            # Where no equilibrium exists above the minimum fibre length, OpenSim ends at the
+            # lower bound (or raises after 20 iterations): clamped either way, no replay needed.
+            v = np.flatnonzero(g_lo < 0.0)
+            status, lce_os = _opensim_search(lmt_f[v], a[v], {k: q[v] for k, q in p.items()},
+                                             h[v], pennated[v], lmin[v], xmin[v])
+            clamped[v[status == _AT_LOWER_BOUND]] = True
+            with np.errstate(invalid="ignore"):
+                xi[v] = np.where(status == _CONVERGED, np.sqrt(lce_os**2 - h[v] ** 2), xi[v])
+        idx = np.flatnonzero(~clamped & (g_lo < 0.0))
+        lo, hi = xmin[idx].copy(), xhi_all[idx].copy()
+        xi = xi[idx]
+        xi = np.where((xi > lo) & (xi < hi), xi, 0.5 * (lo + hi))
+        # Safeguarded Newton (as "rtsafe"): bisect when the Newton step leaves the bracket or
+        # is not at least half as long as the step before last (slow approach to a root
+        # along the exponential passive curve), so the bracket shrinks at least as fast
+        # as bisection's.
+        dx_old = hi - lo
+        for _ in range(max_iterations):
+            if idx.size == 0:
+                break
+            g, dg = residual(xi, idx)
+            neg = g < 0.0
+            lo = np.where(neg, xi, lo)
+            hi = np.where(neg, hi, xi)
+            done = (np.abs(g) <= 1e-13) | (hi - lo <= 4.0 * _EPS * np.abs(hi))
+            if done.any():
+                x[idx[done]] = xi[done]
+                keep = ~done
+                idx, xi, g, dg, lo, hi, dx_old = (idx[keep], xi[keep], g[keep], dg[keep], lo[keep],
+                                                  hi[keep], dx_old[keep])
+            with np.errstate(divide="ignore", invalid="ignore"):
+                dx = g / dg
+            newton = xi - dx
+            ok = (newton > lo) & (newton < hi) & np.isfinite(newton) & (np.abs(2.0 * dx) <= dx_old)
+            dx_old = np.where(ok, np.abs(dx), 0.5 * (hi - lo))
+            xi = np.where(ok, newton, 0.5 * (lo + hi))
+        x[idx] = xi  # not converged within max_iterations (not expected): best iterate
+
+    # Assemble the results.
+    lm = np.where(clamped, lmin, np.hypot(x, h))
+    alpha = np.where(clamped, np.where(pennated, p["maximum_pennation_angle"], 0.0),
+                     np.where(pennated, np.arctan2(h, x), 0.0))
+    x_at = np.where(clamped, xmin, x)
+    lt = np.where(rigid_tendon & ~clamped, lts, lmt_f - x_at)
+    lm_n = lm / l0
+    fl = _active_curve(lm_n, p["kshape_active"])[0]
+    fpe = _passive_curve(lm_n, p["fmax_muscle_strain"], p["kshape_passive"])[0]
+    if rigid_tendon:
+        ft = np.where(clamped, 0.0, fmax * (a * fl + fpe) * np.cos(alpha))
+    else:
+        ft = fmax * _tendon_curve(lt / lts, p["fmax_tendon_strain"])[0]
+    active = np.where(clamped, 0.0, fmax * a * fl)
+    nan = ~valid
+    out = {}
+    for key, arr in (("fiber_length", lm), ("normalized_fiber_length", lm_n),
+                     ("pennation_angle", alpha), ("tendon_length", lt), ("tendon_force", ft),
+                     ("active_fiber_force", active), ("passive_fiber_force", fmax * fpe)):
+        out[key] = np.where(nan, np.nan, arr).reshape(shape)
+    return Equilibrium(**out, clamped=clamped.reshape(shape))
+
+
+def tendon_force(lmt: np.ndarray, params: ThelenParams, activation: float | np.ndarray = 1.0,
+                 rigid_tendon: bool = False) -> np.ndarray:
+    """Static equilibrium tendon force of OpenSim 4.6 Thelen2003 muscles.
+
+    Shorthand for ``equilibrium(lmt, params, activation, rigid_tendon).tendon_force``;
+    matches ``Model.equilibrateMuscles`` + ``Muscle.getTendonForce`` at zero speeds.
+
+    Args:
+        lmt: (..., n_muscles) musculotendon lengths [m].
+        params: Muscle parameters.
+        activation: Activation, scalar or broadcastable to ``lmt`` [-].
+        rigid_tendon: Inextensible tendon (see :func:`equilibrium`).
+
+    Returns:
+        Tendon force [N], shaped like ``lmt``.
+    """
+    return equilibrium(lmt, params, activation, rigid_tendon).tendon_force
+
+
+# ----------------------------------------------------------------------------------------------
+# .osim reading
+# ----------------------------------------------------------------------------------------------
+
+
+def params_from_osim_xml(path: str | Path) -> ThelenParams:
+    """Read the parameters of every ``<Thelen2003Muscle>`` in an ``.osim`` file's ForceSet.
+
+    Properties absent from the file take OpenSim 4.6's defaults. Non-muscle forces are
+    skipped; any other muscle class is refused.
+
+    Args:
+        path: The ``.osim`` file.
+
+    Returns:
+        Parameters in ForceSet order, with the muscles' names.
+
+    Raises:
+        UnsupportedFeatureError: the ForceSet holds a muscle of another class.
+        OsimError: the file is not valid XML or a property is not a number.
+        ParameterError: a required property is missing or a value is out of range.
+    """
+    path = Path(path)
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        raise OsimError(str(path), f"not valid XML: {exc}") from None
+    props: list[dict[str, float]] = []
+    names: list[str] = []
+    wanted = {osim_name for osim_name, _ in OSIM_PROPERTIES.values()}
+    for objects in root.iterfind(".//ForceSet/objects"):
+        for el in objects:
+            name = el.get("name", "")
+            if el.tag != "Thelen2003Muscle":
+                if "Muscle" in el.tag:
+                    raise UnsupportedFeatureError(
+                        str(path), f"muscle class {el.tag} is not supported "
+                        "(only Thelen2003Muscle)", element=el.tag, component=name)
+                continue
+            values: dict[str, float] = {}
+            for child in el:
+                if child.tag in wanted:
+                    try:
+                        values[child.tag] = float((child.text or "").strip())
+                    except ValueError:
+                        raise OsimError(str(path), f"<{child.tag}> is not a number: {child.text!r}",
+                                        element=el.tag, component=name) from None
+            props.append(values)
+            names.append(name)
+    return ThelenParams.from_osim_properties(props, names)
