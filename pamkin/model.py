@@ -185,6 +185,37 @@ class Model:
         T = self.torques(q, activation)
         return np.where(T > 0, T, 0.0).sum(axis=1), np.where(T < 0, T, 0.0).sum(axis=1)
 
+    def grid(self, coordinates: list[str], n: int | list[int] = 21, rom=None,
+             base: ConfigLike | None = None) -> tuple[np.ndarray, tuple[int, ...]]:
+        """Configurations on a 1-D/2-D/N-D grid of coordinates.
+
+        Args:
+            coordinates: Grid coordinates (the last varies fastest).
+            n: Points per coordinate.
+            rom: A :class:`pamkin.rom.RangeOfMotion` (coupled limits honoured); default: the
+                model's coordinate ranges.
+            base: Values of the other coordinates (default: the model defaults).
+
+        Returns:
+            (q, shape): q is (prod(shape), n_coordinates); reshape results with ``shape``.
+        """
+        from .rom import RangeOfMotion  # noqa: PLC0415
+
+        unknown = [c for c in coordinates if c not in self.coordinates]
+        if unknown:
+            from .errors import ConfigurationError  # noqa: PLC0415
+
+            raise ConfigurationError(f"unknown grid coordinate(s) {unknown}; valid: {self.coordinates}")
+        if rom is None:
+            rom = RangeOfMotion({c: tuple(r) for c, r in zip(self.coordinates, self.coordinate_ranges.tolist())})
+        pts = rom.grid(coordinates, n)
+        q0 = self.default_q if base is None else self.kinematics.as_q(base)[0]
+        q = np.tile(q0, (len(pts), 1))
+        for i, c in enumerate(coordinates):
+            q[:, self.coordinates.index(c)] = pts[:, i]
+        shape = tuple([n] * len(coordinates) if isinstance(n, int) else n)
+        return q, shape
+
     def random_q(self, n: int, seed: int | None = 0) -> np.ndarray:
         """``n`` configurations uniform over every coordinate's range (fixed seed by default)."""
         rng = np.random.default_rng(seed)
