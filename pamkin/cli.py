@@ -34,7 +34,7 @@ def cmd_urdf(args: argparse.Namespace) -> int:
         if files:
             print("stale (regenerate with `pamkin urdf`): " + ", ".join(str(f) for f in files))
             return 1
-        print("robot/data/gait2392.yaml and urdf/gait2392.urdf are up to date")
+        print("robot/data/gait2392.yaml, urdf/gait2392.urdf and urdf/pam_biped.urdf are up to date")
         return 0
     for f in files:
         print(f"wrote {f}")
@@ -70,9 +70,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "Without --osim, commands use the built-in Gait2392 data (robot/data, urdf/).")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    s = sub.add_parser("urdf", help="regenerate robot/data/gait2392.yaml and urdf/gait2392.urdf from an .osim",
+    s = sub.add_parser("urdf", help="regenerate the built-in data and URDFs from Gait2392's .osim",
                        description="Import OpenSim's Gait2392 .osim, write the project data file "
-                                   "robot/data/gait2392.yaml and render urdf/gait2392.urdf with xacro.")
+                                   "robot/data/gait2392.yaml and render urdf/gait2392.urdf and the robot's "
+                                   "urdf/pam_biped.urdf (robot/data/pam_biped.yaml design) with xacro.")
     s.add_argument("--osim", help=f"the .osim file (default: {DEFAULT_OSIM})")
     s.add_argument("--check", action="store_true", help="write nothing; exit 1 if the files are stale")
     s.set_defaults(func=cmd_urdf)
@@ -82,9 +83,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--json", action="store_true", help="machine-readable output")
     s.set_defaults(func=cmd_info)
 
-    from . import cli_torques  # noqa: PLC0415
+    from . import cli_robot, cli_torques  # noqa: PLC0415
 
     cli_torques.add_parsers(sub)
+    cli_robot.add_parsers(sub)
     return p
 
 

@@ -208,8 +208,8 @@ class Model:
             raise ConfigurationError(f"unknown grid coordinate(s) {unknown}; valid: {self.coordinates}")
         if rom is None:
             rom = RangeOfMotion({c: tuple(r) for c, r in zip(self.coordinates, self.coordinate_ranges.tolist())})
-        pts = rom.grid(coordinates, n)
         q0 = self.default_q if base is None else self.kinematics.as_q(base)[0]
+        pts = rom.grid(coordinates, n, base=dict(zip(self.coordinates, q0)))
         q = np.tile(q0, (len(pts), 1))
         for i, c in enumerate(coordinates):
             q[:, self.coordinates.index(c)] = pts[:, i]

@@ -101,11 +101,13 @@ class RangeOfMotion:
             ok &= (v >= lo - tol) & (v <= hi + tol)
         return ok
 
-    def grid(self, coordinates: Sequence[str], n: int | Sequence[int] = 21) -> np.ndarray:
+    def grid(self, coordinates: Sequence[str], n: int | Sequence[int] = 21,
+             base: Mapping[str, float] | None = None) -> np.ndarray:
         """Grid over ``coordinates`` (M, len(coordinates)), last coordinate varying fastest.
 
         A coupled coordinate whose ``depends_on`` is in the grid is swept between its
-        limits at each value of that coordinate (so every point lies in the range).
+        limits at each value of that coordinate (so every point lies in the range); if
+        ``depends_on`` is not in the grid, its limits are taken at ``base[depends_on]``.
 
         Args:
             coordinates: Names; box-limited or coupled.
@@ -126,9 +128,12 @@ class RangeOfMotion:
             c = coordinates[i]
             if c in self._coupled_by:
                 dep = self._coupled_by[c].depends_on
-                if dep not in done:
-                    raise ConfigurationError(f"grid over {c} needs {dep} in the grid too")
-                lo, hi = self._coupled_by[c].limits(done[dep])
+                if dep in done:
+                    lo, hi = self._coupled_by[c].limits(done[dep])
+                elif base is not None and dep in base:
+                    lo, hi = self._coupled_by[c].limits(np.full(len(pts), float(base[dep])))
+                else:
+                    raise ConfigurationError(f"grid over {c} needs {dep} in the grid or a base value")
             else:
                 lo, hi = self.bounds(c)
             out[:, i] = lo + pts[:, i] * (np.asarray(hi) - np.asarray(lo))

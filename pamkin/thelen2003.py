@@ -58,6 +58,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pamkin import _thelen_kernel as _k
 from pamkin.errors import ConfigurationError, OsimError, ParameterError, UnsupportedFeatureError
 
 __all__ = [
@@ -71,17 +72,6 @@ __all__ = [
     "tendon_force",
     "tendon_force_length",
 ]
-
-#: Tendon toe region of OpenSim's Thelen2003Muscle: exponential shape factor and
-#: normalized force at the end of the toe (Thelen 2003).
-_K_TOE = 3.0
-_F_TOE = 0.33
-#: exp(3) once.
-_E3 = math.exp(_K_TOE)
-#: OpenSim treats an optimal pennation angle at or below machine epsilon as unpennated.
-_EPS = float(np.finfo(float).eps)
-#: SimTK::SignificantReal (eps^(7/8)): OpenSim's threshold for "maximum pennation angle is zero".
-_SIGNIFICANT_REAL = _EPS ** 0.875
 
 #: ThelenParams field -> (Thelen2003Muscle property name in the .osim file, OpenSim 4.6 default).
 #: ``None`` as default means the property is required.
@@ -108,14 +98,6 @@ OSIM_PROPERTIES: dict[str, tuple[str, float | None]] = {
 # ----------------------------------------------------------------------------------------------
 
 
-def _toe(fmax_tendon_strain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Strain at the end of the toe region and slope of the linear region (normalized)."""
-    e0 = np.asarray(fmax_tendon_strain, dtype=float)
-    e_toe = 99.0 * e0 * _E3 / (166.0 * _E3 - 67.0)
-    k_lin = 0.67 / (e0 - e_toe)
-    return e_toe, k_lin
-
-
 def tendon_force_length(normalized_tendon_length: np.ndarray,
                         fmax_tendon_strain: float | np.ndarray = 0.04) -> np.ndarray:
     """Thelen2003 tendon force-length curve fT, as in OpenSim 4.6 (``calcfse``).
@@ -133,20 +115,7 @@ def tendon_force_length(normalized_tendon_length: np.ndarray,
     Returns:
         Tendon force over maximum isometric force [-], broadcast shape.
     """
-    return _tendon_curve(normalized_tendon_length, fmax_tendon_strain)[0]
-
-
-def _tendon_curve(lt_n: np.ndarray, e0: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """fT and dfT/d(lT/lTs)."""
-    e = np.asarray(lt_n, dtype=float) - 1.0
-    e_toe, k_lin = _toe(e0)
-    scale = _F_TOE / (_E3 - 1.0)
-    with np.errstate(over="ignore", invalid="ignore"):
-        ex = np.exp(_K_TOE * np.minimum(e, e_toe) / e_toe)
-    toe = e > 0.0
-    f = np.where(e > e_toe, k_lin * (e - e_toe) + _F_TOE, np.where(toe, scale * (ex - 1.0), 0.0))
-    df = np.where(e > e_toe, k_lin + 0.0 * e, np.where(toe, scale * _K_TOE / e_toe * ex, 0.0))
-    return f, df
+    return _k.tendon_force_length_ufunc(_f(normalized_tendon_length), _f(fmax_tendon_strain))
 
 
 def force_length_active(normalized_fiber_length: np.ndarray,
@@ -162,14 +131,7 @@ def force_length_active(normalized_fiber_length: np.ndarray,
     Returns:
         Active force multiplier [-], broadcast shape.
     """
-    return _active_curve(normalized_fiber_length, kshape_active)[0]
-
-
-def _active_curve(lm_n: np.ndarray, k: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """fL and dfL/d(lM/l0)."""
-    t = np.asarray(lm_n, dtype=float) - 1.0
-    f = np.exp(-t * t / k)
-    return f, -2.0 * t / k * f
+    return _k.force_length_active_ufunc(_f(normalized_fiber_length), _f(kshape_active))
 
 
 def force_length_passive(normalized_fiber_length: np.ndarray,
@@ -188,19 +150,13 @@ def force_length_passive(normalized_fiber_length: np.ndarray,
     Returns:
         Passive force multiplier [-], broadcast shape.
     """
-    return _passive_curve(normalized_fiber_length, fmax_muscle_strain, kshape_passive)[0]
+    return _k.force_length_passive_ufunc(_f(normalized_fiber_length), _f(fmax_muscle_strain),
+                                         _f(kshape_passive))
 
 
-def _passive_curve(lm_n: np.ndarray, e0: float | np.ndarray,
-                   k: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """fPE and dfPE/d(lM/l0)."""
-    s = np.asarray(lm_n, dtype=float) - 1.0
-    denom = np.expm1(k)
-    with np.errstate(over="ignore"):
-        ex = np.exp(k * np.maximum(s, 0.0) / e0)
-    f = np.where(s > 0.0, (ex - 1.0) / denom, 0.0)
-    df = np.where(s > 0.0, k / e0 * ex / denom, 0.0)
-    return f, df
+def _f(x) -> np.ndarray:
+    """Float array view of ``x`` (one compiled ufunc loop, float64)."""
+    return np.asarray(x, dtype=float)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -347,15 +303,6 @@ class ThelenParams:
         return cls(**{k: np.asarray(v, dtype=float) for k, v in columns.items()}, names=names)
 
 
-def _parallelogram_height(l0: np.ndarray, alpha0: np.ndarray) -> np.ndarray:
-    """h = l0·sin(alpha0); 0 where OpenSim treats the muscle as unpennated (alpha0 <= eps).
-
-    (OpenSim still uses its ``h`` <= 2.3e-16·l0 there for the minimum fibre length; taking 0
-    keeps the geometry consistent and changes nothing measurable.)
-    """
-    return np.where(alpha0 > _EPS, l0 * np.sin(alpha0), 0.0)
-
-
 def minimum_fiber_length(params: ThelenParams) -> np.ndarray:
     """OpenSim's minimum fibre length of each muscle (fixed-width pennation model) [m].
 
@@ -369,9 +316,9 @@ def minimum_fiber_length(params: ThelenParams) -> np.ndarray:
     Returns:
         (n_muscles,) minimum fibre length [m].
     """
-    h = _parallelogram_height(params.optimal_fiber_length, params.pennation_angle_at_optimal)
-    amax = params.maximum_pennation_angle
-    return np.where(amax > _SIGNIFICANT_REAL, h / np.sin(amax), 0.01 * params.optimal_fiber_length)
+    return _k.minimum_fiber_length_ufunc(params.optimal_fiber_length,
+                                         params.pennation_angle_at_optimal,
+                                         params.maximum_pennation_angle)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -406,106 +353,32 @@ class Equilibrium:
 
 def _prepare(lmt: np.ndarray, params: ThelenParams,
              activation: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Check the inputs; return lengths and activation clamped to [minimum_activation, 1]."""
+    """Check the inputs; return the lengths as (N, n_muscles) and the activation broadcast to
+    them (a read-only view; clamped to [minimum_activation, 1] by the kernel)."""
     lmt = np.asarray(lmt, dtype=float)
     if lmt.ndim == 0 or lmt.shape[-1] != params.n_muscles:
         raise ConfigurationError(
             f"musculotendon lengths have shape {lmt.shape}; the last axis must have "
             f"{params.n_muscles} entries (one per muscle)")
+    act = np.asarray(activation, dtype=float)
     try:
-        act = np.broadcast_to(np.asarray(activation, dtype=float), lmt.shape)
+        act = np.broadcast_to(act, lmt.shape)
     except ValueError:
         raise ConfigurationError(f"activation of shape {np.shape(activation)} does not broadcast "
                                  f"to the lengths' shape {lmt.shape}") from None
-    if not np.all(np.isfinite(act)):
+    if not np.all(np.isfinite(np.asarray(activation, dtype=float))):
         raise ConfigurationError("activation must be finite")
-    act = np.clip(act, params.minimum_activation, 1.0)
-    return lmt, act
+    m = params.n_muscles
+    return np.ascontiguousarray(lmt.reshape(-1, m)), act.reshape(-1, m)
 
 
-#: Outcomes of OpenSim's equilibrium search (``Thelen2003Muscle::initMuscleState``).
-_CONVERGED, _AT_LOWER_BOUND, _FAILED = 0, 1, 2
-
-
-def _opensim_search(lmt: np.ndarray, a: np.ndarray, p: dict[str, np.ndarray], h: np.ndarray,
-                    pennated: np.ndarray, lmin: np.ndarray, xmin: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray]:
-    """Replay OpenSim 4.6's damped Newton search for the fibre length (flat arrays).
-
-    OpenSim (``Thelen2003Muscle::initMuscleState``) starts with the tendon at 1.01 × its
-    slack length, takes Newton steps on the fibre length, halves a step (down to
-    sqrt(eps)) until the force error drops, raises any iterate below the minimum fibre
-    length to it, and stops after 20 iterations or when the force error is below
-    ``max(1e-8·Fmax, 10·SignificantReal)``. It then reports *converged*, *at lower bound*
-    (not converged and the fibre at its minimum length: OpenSim clamps it there) or fails.
-
-    The path matters where the fibre is extremely short: for an unpennated muscle the
-    minimum fibre length is 0, and once an iterate reaches 0 the Newton slope is 0/0, so
-    OpenSim stays at 0 and reports the fibre clamped even though an equilibrium exists a
-    few micrometres above it. Replaying the search is the only way to reproduce that.
-    At zero velocity the force-velocity multiplier OpenSim uses is exactly 1.
-
-    Returns:
-        (status, fibre length) per entry; status is one of ``_CONVERGED``,
-        ``_AT_LOWER_BOUND``, ``_FAILED``.
-    """
-    l0, lts, fmax = p["optimal_fiber_length"], p["tendon_slack_length"], p["max_isometric_force"]
-    amax = p["maximum_pennation_angle"]
-    sin_amax = np.sin(amax)
-    tol = np.maximum(1e-8 * fmax, 10.0 * _SIGNIFICANT_REAL)
-    sqrt_eps = math.sqrt(_EPS)
-
-    def force_error(lce, i):
-        """OpenSim's positionFunc + multipliersFunc + ferrFunc (fv = 1)."""
-        ratio = h[i] / lce
-        phi = np.where(pennated[i] & (lce > lmin[i]) & (ratio < sin_amax[i]),
-                       np.arcsin(np.clip(ratio, -1.0, 1.0)), np.where(pennated[i], amax[i], 0.0))
-        cos = np.cos(phi)
-        tl = lmt[i] - lce * cos
-        fl, dfl = _active_curve(lce / l0[i], p["kshape_active"][i])
-        fpe, dfpe = _passive_curve(lce / l0[i], p["fmax_muscle_strain"][i], p["kshape_passive"][i])
-        fse, dfse = _tendon_curve(tl / lts[i], p["fmax_tendon_strain"][i])
-        fm = (a[i] * fl + fpe) * fmax[i]
-        ferr = fm * cos - fse * fmax[i]
-        # OpenSim's partialsFunc (singular at lce = 0 for an unpennated muscle: 0/0 = NaN).
-        h2 = h[i] * h[i]
-        dcos = h2 / (lce ** 3 * np.sqrt(1.0 - h2 / (lce * lce)))
-        dfm_at = (a[i] * dfl + dfpe) * fmax[i] / l0[i] * cos + fm * dcos
-        dphi = -h[i] / (lce * lce * np.sqrt(1.0 - ratio * ratio))
-        dtl = -cos + lce * np.sin(phi) * dphi
-        dft = dfse * dtl * fmax[i] / lts[i]
-        return ferr, dfm_at - dft
-
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        n = lmt.size
-        # Starting guess: MuscleFixedWidthPennationModel::calcFiberLength(lMT, 1.01·lTs).
-        x0 = lmt - 1.01 * lts
-        lce = np.where(x0 >= xmin, np.hypot(h, x0), lmin)
-        ferr, slope = force_error(lce, np.arange(n))
-        for _ in range(20):
-            i = np.flatnonzero(np.abs(ferr) > tol)  # NaN compares False: OpenSim stops too
-            if i.size == 0:
-                break
-            prev_err, prev_lce, d = ferr[i], lce[i], slope[i]
-            step = np.ones(i.size)
-            cur_lce, cur_err, cur_slope = prev_lce.copy(), prev_err.copy(), d.copy()
-            inner = np.arange(i.size)  # entries still halving their step
-            while inner.size:
-                delta = -step[inner] * prev_err[inner] / d[inner]
-                big = np.abs(delta) > _SIGNIFICANT_REAL
-                trial = np.where(big, prev_lce[inner] + delta,
-                                 prev_lce[inner] - np.sign(np.nan_to_num(delta)) * sqrt_eps)
-                step[inner] = np.where(big, step[inner], 0.0)
-                trial = np.where(trial < lmin[i[inner]], lmin[i[inner]], trial)
-                e, s = force_error(trial, i[inner])
-                cur_lce[inner], cur_err[inner], cur_slope[inner] = trial, e, s
-                stop = (step[inner] <= sqrt_eps) | ~(np.abs(e) >= np.abs(prev_err[inner]))
-                step[inner] *= 0.5
-                inner = inner[~stop]
-            lce[i], ferr[i], slope[i] = cur_lce, cur_err, cur_slope
-        status = np.where(np.abs(ferr) < tol, _CONVERGED,
-                          np.where(lce <= lmin, _AT_LOWER_BOUND, _FAILED))
-    return status, lce
+def _muscle_table(params: ThelenParams) -> np.ndarray:
+    """Per-muscle constants for the kernel (:func:`pamkin._thelen_kernel.muscle_table`)."""
+    return _k.muscle_table(
+        params.max_isometric_force, params.optimal_fiber_length, params.tendon_slack_length,
+        params.pennation_angle_at_optimal, params.fmax_tendon_strain, params.fmax_muscle_strain,
+        params.kshape_active, params.kshape_passive, params.maximum_pennation_angle,
+        params.minimum_activation)
 
 
 def equilibrium(lmt: np.ndarray, params: ThelenParams, activation: float | np.ndarray = 1.0,
@@ -541,112 +414,20 @@ def equilibrium(lmt: np.ndarray, params: ThelenParams, activation: float | np.nd
         ConfigurationError: ``lmt``'s last axis does not match the number of muscles, or
             ``activation`` is not finite or does not broadcast.
     """
-    lmt, act = _prepare(lmt, params, activation)
-    shape = lmt.shape
-    p = {k: np.broadcast_to(getattr(params, k), shape).ravel() for k in OSIM_PROPERTIES}
-    lmt_f, a = lmt.ravel(), act.ravel()
-    l0, lts, fmax = p["optimal_fiber_length"], p["tendon_slack_length"], p["max_isometric_force"]
-    h = _parallelogram_height(l0, p["pennation_angle_at_optimal"])
-    pennated = h > 0.0
-    lmin = np.broadcast_to(minimum_fiber_length(params), shape).ravel()
-    cos_max = np.where(pennated, np.cos(p["maximum_pennation_angle"]), 1.0)
-    xmin = lmin * cos_max  # minimum fibre length along the tendon
+    shape = np.shape(lmt)
+    lmt2, act2 = _prepare(lmt, params, activation)
+    out = {key: np.empty(lmt2.shape) for key in _FLOAT_FIELDS}
+    clamped = np.empty(lmt2.shape, dtype=bool)
+    _k.equilibrium_kernel(lmt2, act2, _muscle_table(params), bool(rigid_tendon),
+                          bool(opensim_search), int(max_iterations),
+                          *(out[key] for key in _FLOAT_FIELDS), clamped)
+    return Equilibrium(**{key: arr.reshape(shape) for key, arr in out.items()},
+                       clamped=clamped.reshape(shape))
 
-    def residual(x, idx, need_slope=True):
-        """Normalized force error (fibre along tendon − tendon) at fibre-along-tendon x."""
-        hh = h[idx]
-        lm = np.hypot(x, hh)
-        cos = np.where(lm > 0.0, x / np.where(lm > 0.0, lm, 1.0), 1.0)
-        lm_n = lm / l0[idx]
-        fl, dfl = _active_curve(lm_n, p["kshape_active"][idx])
-        fpe, dfpe = _passive_curve(lm_n, p["fmax_muscle_strain"][idx], p["kshape_passive"][idx])
-        ft, dft = _tendon_curve((lmt_f[idx] - x) / lts[idx], p["fmax_tendon_strain"][idx])
-        fm = a[idx] * fl + fpe
-        g = fm * cos - ft
-        if not need_slope:
-            return g, None
-        curv = np.where(hh > 0.0, hh * hh / np.where(lm > 0.0, lm, 1.0) ** 3, 0.0)
-        dg = (a[idx] * dfl + dfpe) / l0[idx] * cos * cos + fm * curv + dft / lts[idx]
-        return g, dg
 
-    n = lmt_f.size
-    x = np.full(n, np.nan)
-    clamped = np.zeros(n, dtype=bool)
-    valid = np.isfinite(lmt_f)
-
-    if rigid_tendon:
-        xr = lmt_f - lts
-        ok = valid & (xr > xmin)
-        clamped = valid & ~ok
-        x[ok] = xr[ok]
-    else:
-        xhi_all = lmt_f - lts  # fibre along tendon that leaves the tendon exactly slack
-        g_lo = np.full(n, np.nan)
-        idx = np.flatnonzero(valid & (xhi_all > xmin))
-        g_lo[idx] = residual(xmin[idx], idx, need_slope=False)[0]
-        clamped = valid & ~(g_lo < 0.0)  # includes slack (xhi <= xmin) and "fibre too strong"
-        # Starting guess: OpenSim's (tendon at 1.01 × slack length), or OpenSim's answer.
-        xi = lmt_f - 1.01 * lts
-        if opensim_search:
-            # Where no equilibrium exists above the minimum fibre length, OpenSim ends at the
-            # lower bound (or raises after 20 iterations): clamped either way, no replay needed.
-            v = np.flatnonzero(g_lo < 0.0)
-            status, lce_os = _opensim_search(lmt_f[v], a[v], {k: q[v] for k, q in p.items()},
-                                             h[v], pennated[v], lmin[v], xmin[v])
-            clamped[v[status == _AT_LOWER_BOUND]] = True
-            with np.errstate(invalid="ignore"):
-                xi[v] = np.where(status == _CONVERGED, np.sqrt(lce_os**2 - h[v] ** 2), xi[v])
-        idx = np.flatnonzero(~clamped & (g_lo < 0.0))
-        lo, hi = xmin[idx].copy(), xhi_all[idx].copy()
-        xi = xi[idx]
-        xi = np.where((xi > lo) & (xi < hi), xi, 0.5 * (lo + hi))
-        # Safeguarded Newton (as "rtsafe"): bisect when the Newton step leaves the bracket or
-        # is not at least half as long as the step before last (slow approach to a root
-        # along the exponential passive curve), so the bracket shrinks at least as fast
-        # as bisection's.
-        dx_old = hi - lo
-        for _ in range(max_iterations):
-            if idx.size == 0:
-                break
-            g, dg = residual(xi, idx)
-            neg = g < 0.0
-            lo = np.where(neg, xi, lo)
-            hi = np.where(neg, hi, xi)
-            done = (np.abs(g) <= 1e-13) | (hi - lo <= 4.0 * _EPS * np.abs(hi))
-            if done.any():
-                x[idx[done]] = xi[done]
-                keep = ~done
-                idx, xi, g, dg, lo, hi, dx_old = (idx[keep], xi[keep], g[keep], dg[keep], lo[keep],
-                                                  hi[keep], dx_old[keep])
-            with np.errstate(divide="ignore", invalid="ignore"):
-                dx = g / dg
-            newton = xi - dx
-            ok = (newton > lo) & (newton < hi) & np.isfinite(newton) & (np.abs(2.0 * dx) <= dx_old)
-            dx_old = np.where(ok, np.abs(dx), 0.5 * (hi - lo))
-            xi = np.where(ok, newton, 0.5 * (lo + hi))
-        x[idx] = xi  # not converged within max_iterations (not expected): best iterate
-
-    # Assemble the results.
-    lm = np.where(clamped, lmin, np.hypot(x, h))
-    alpha = np.where(clamped, np.where(pennated, p["maximum_pennation_angle"], 0.0),
-                     np.where(pennated, np.arctan2(h, x), 0.0))
-    x_at = np.where(clamped, xmin, x)
-    lt = np.where(rigid_tendon & ~clamped, lts, lmt_f - x_at)
-    lm_n = lm / l0
-    fl = _active_curve(lm_n, p["kshape_active"])[0]
-    fpe = _passive_curve(lm_n, p["fmax_muscle_strain"], p["kshape_passive"])[0]
-    if rigid_tendon:
-        ft = np.where(clamped, 0.0, fmax * (a * fl + fpe) * np.cos(alpha))
-    else:
-        ft = fmax * _tendon_curve(lt / lts, p["fmax_tendon_strain"])[0]
-    active = np.where(clamped, 0.0, fmax * a * fl)
-    nan = ~valid
-    out = {}
-    for key, arr in (("fiber_length", lm), ("normalized_fiber_length", lm_n),
-                     ("pennation_angle", alpha), ("tendon_length", lt), ("tendon_force", ft),
-                     ("active_fiber_force", active), ("passive_fiber_force", fmax * fpe)):
-        out[key] = np.where(nan, np.nan, arr).reshape(shape)
-    return Equilibrium(**out, clamped=clamped.reshape(shape))
+#: Float fields of :class:`Equilibrium` in the kernel's output order.
+_FLOAT_FIELDS = ("fiber_length", "normalized_fiber_length", "pennation_angle", "tendon_length",
+                 "tendon_force", "active_fiber_force", "passive_fiber_force")
 
 
 def tendon_force(lmt: np.ndarray, params: ThelenParams, activation: float | np.ndarray = 1.0,

@@ -1,0 +1,247 @@
+"""PAM robot design files: routes, sizes and operating point of every PAM.
+
+A design file (YAML) describes one side (right) of the robot; the left side is its
+mirror image (z → −z in every body frame, ``_r`` → ``_l``). Format::
+
+    name: thesis_2019
+    description: ...
+    rom: robot_thesis                 # range of motion in robot/data/rom.yaml
+    force_model: v3                   # pamkin.festo model (v3, v0)
+    pressure_Pa: 620000.0
+    fitting_length_m: 0.0125          # per end; each PAM has two fittings
+    pams:
+      - id: 4
+        name: Biceps Femoris Long Head
+        human_muscles: [bifemlh_r]    # the Gait2392 muscles it replaces
+        primary_coordinate: knee_angle_r
+        secondary_coordinates: [hip_flexion_r]
+        diameter_mm: 20               # 10, 20 or 40
+        n_parallel: 1
+        resting_length_m: 0.4
+        tendon_length_m: 0.1          # artificial tendon (may be negative only as a flagged defect)
+        points:                       # route, origin first; PathPoint / MovingPathPoint
+          - {name: p5, body: pelvis, location: [-0.126, -0.103, 0.069]}
+          - ...
+
+Lengths: path length L = l_pam + 2·fitting + tendon, so the PAM's own length is
+l_pam = L − 2·fitting − tendon and its contraction ε = (l_rest − l_pam)/l_rest.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .errors import DataFileError
+from .functions import Constant, MultiplierFunction
+from .osim import AnyPathPoint, MovingPathPoint, PathPoint, _point_to_dict, point_from_dict
+from .urdf_build import ROBOT_DIR, atomic_write
+
+#: The built-in design: the thesis robot's 27 PAMs (sized by the thesis algorithm).
+THESIS_DESIGN = ROBOT_DIR / "data" / "pam_biped.yaml"
+DIAMETERS_MM = (10, 20, 40)
+_REQUIRED = ("id", "name", "human_muscles", "primary_coordinate", "diameter_mm", "resting_length_m",
+             "tendon_length_m", "points")
+
+
+@dataclass(frozen=True)
+class Pam:
+    """One PAM (right side) of a design.
+
+    Attributes:
+        id: Actuator number.
+        name: Name.
+        human_muscles: Gait2392 muscles it replaces.
+        primary_coordinate: Coordinate whose torque it mainly reproduces.
+        secondary_coordinates: Further coordinates compared.
+        diameter_mm: Festo inner diameter (10, 20, 40).
+        n_parallel: PAMs in parallel on the same route.
+        resting_length_m: Resting length of one PAM, fittings excluded [m].
+        tendon_length_m: Artificial tendon length [m].
+        points: Route (origin first).
+        notes: Free text.
+    """
+
+    id: int
+    name: str
+    human_muscles: tuple[str, ...]
+    primary_coordinate: str
+    secondary_coordinates: tuple[str, ...]
+    diameter_mm: int
+    n_parallel: int
+    resting_length_m: float
+    tendon_length_m: float
+    points: tuple[AnyPathPoint, ...]
+    notes: str = ""
+
+    @property
+    def key(self) -> str:
+        """Short key, e.g. ``pam04``."""
+        return f"pam{self.id:02d}"
+
+
+@dataclass(frozen=True)
+class Design:
+    """A robot design (right side; the left is mirrored).
+
+    Attributes:
+        name: Design name.
+        pams: PAMs in file order.
+        pressure_Pa: Supply pressure (gauge) [Pa].
+        force_model: Festo force model name.
+        fitting_length_m: Length of one fitting [m].
+        rom: Name of the range of motion used for sizing and comparison.
+        description: Free text.
+        path: File it was read from.
+    """
+
+    name: str
+    pams: tuple[Pam, ...]
+    pressure_Pa: float = 620e3
+    force_model: str = "v3"
+    fitting_length_m: float = 0.0125
+    rom: str = "robot_thesis"
+    description: str = ""
+    path: str = ""
+    extra: dict = field(default_factory=dict, compare=False)
+
+    def pam(self, key: int | str) -> Pam:
+        """PAM by id or key."""
+        for p in self.pams:
+            if key in (p.id, p.key, p.name):
+                return p
+        raise KeyError(f"design {self.name!r} has no PAM {key!r}")
+
+    def replace_pam(self, pam: Pam) -> Design:
+        """A copy with one PAM replaced (matched by id)."""
+        return Design(self.name, tuple(pam if p.id == pam.id else p for p in self.pams), self.pressure_Pa,
+                      self.force_model, self.fitting_length_m, self.rom, self.description, self.path,
+                      dict(self.extra))
+
+    def to_dict(self) -> dict:
+        """Plain-data form (what :func:`save_design` writes)."""
+        out = {"name": self.name, "description": self.description, "rom": self.rom,
+               "force_model": self.force_model, "pressure_Pa": float(self.pressure_Pa),
+               "fitting_length_m": float(self.fitting_length_m)}
+        out.update(copy.deepcopy(self.extra))
+        out["pams"] = [{
+            "id": p.id, "name": p.name, "human_muscles": list(p.human_muscles),
+            "primary_coordinate": p.primary_coordinate,
+            "secondary_coordinates": list(p.secondary_coordinates),
+            "diameter_mm": int(p.diameter_mm), "n_parallel": int(p.n_parallel),
+            "resting_length_m": float(p.resting_length_m), "tendon_length_m": float(p.tendon_length_m),
+            "notes": p.notes,
+            "points": [_point_to_dict(pt) for pt in p.points],
+        } for p in self.pams]
+        return out
+
+
+def _fail(path: str, msg: str) -> DataFileError:
+    return DataFileError(path, msg)
+
+
+def design_from_dict(data: dict, path: str = "<design>", bodies: list[str] | None = None,
+                     coordinates: list[str] | None = None) -> Design:
+    """Validate and build a :class:`Design` (errors name the file, PAM and field)."""
+    if not isinstance(data, dict) or "pams" not in data:
+        raise _fail(path, "not a design file: needs a top-level 'pams' list")
+    pams = []
+    seen = set()
+    for k, d in enumerate(data["pams"]):
+        where = f"pams[{k}]" + (f" (id {d.get('id')}, {d.get('name')!r})" if isinstance(d, dict) else "")
+        if not isinstance(d, dict):
+            raise _fail(path, f"{where}: must be a mapping")
+        missing = [f for f in _REQUIRED if f not in d]
+        if missing:
+            raise _fail(path, f"{where}: missing field(s) {missing}")
+        if d["id"] in seen:
+            raise _fail(path, f"{where}: duplicate id")
+        seen.add(d["id"])
+        if d["diameter_mm"] not in DIAMETERS_MM:
+            raise _fail(path, f"{where}: diameter_mm {d['diameter_mm']!r} is not a Festo DMSP size {DIAMETERS_MM}")
+        try:
+            rest = float(d["resting_length_m"])
+            tendon = float(d["tendon_length_m"])
+            npar = int(d.get("n_parallel", 1))
+        except (TypeError, ValueError) as e:
+            raise _fail(path, f"{where}: {e}") from None
+        if not np.isfinite(rest) or rest <= 0:
+            raise _fail(path, f"{where}: resting_length_m must be a positive length, is {rest}")
+        if not np.isfinite(tendon):
+            raise _fail(path, f"{where}: tendon_length_m must be finite")
+        if npar not in (1, 2, 3):
+            raise _fail(path, f"{where}: n_parallel must be 1, 2 or 3")
+        try:
+            points = tuple(point_from_dict(p) for p in d["points"])
+        except (KeyError, TypeError, ValueError) as e:
+            raise _fail(path, f"{where}: bad route point: {type(e).__name__}: {e}") from None
+        if len(points) < 2:
+            raise _fail(path, f"{where}: a route needs at least 2 points")
+        for pt in points:
+            if bodies is not None and pt.body not in bodies:
+                raise _fail(path, f"{where}: route point {pt.name!r} is on unknown body {pt.body!r}; "
+                                  f"bodies: {bodies}")
+            if isinstance(pt, PathPoint) and not np.all(np.isfinite(pt.location)):
+                raise _fail(path, f"{where}: route point {pt.name!r} has a non-finite location")
+        coords = [d["primary_coordinate"], *d.get("secondary_coordinates", [])]
+        if coordinates is not None:
+            bad = [c for c in coords if c not in coordinates]
+            if bad:
+                raise _fail(path, f"{where}: unknown coordinate(s) {bad}")
+        pams.append(Pam(int(d["id"]), str(d["name"]), tuple(d["human_muscles"]), d["primary_coordinate"],
+                        tuple(d.get("secondary_coordinates", [])), int(d["diameter_mm"]), npar, rest,
+                        tendon, points, str(d.get("notes", ""))))
+    known = {"name", "description", "rom", "force_model", "pressure_Pa", "fitting_length_m", "pams"}
+    try:
+        return Design(str(data.get("name", Path(path).stem)), tuple(pams), float(data.get("pressure_Pa", 620e3)),
+                      str(data.get("force_model", "v3")), float(data.get("fitting_length_m", 0.0125)),
+                      str(data.get("rom", "robot_thesis")), str(data.get("description", "")), path,
+                      {k: v for k, v in data.items() if k not in known})
+    except (TypeError, ValueError) as e:
+        raise _fail(path, f"bad top-level field: {e}") from None
+
+
+def load_design(path: str | os.PathLike = THESIS_DESIGN, bodies: list[str] | None = None,
+                coordinates: list[str] | None = None) -> Design:
+    """Read and validate a design file.
+
+    Raises:
+        DataFileError: Malformed YAML, missing fields, unknown diameter/body/coordinate,
+            non-positive lengths — naming the file and the PAM.
+    """
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except FileNotFoundError:
+        raise _fail(str(path), "file not found") from None
+    except yaml.YAMLError as e:
+        raise _fail(str(path), f"not valid YAML: {e}") from None
+    return design_from_dict(data, str(path), bodies, coordinates)
+
+
+def save_design(design: Design, path: str | os.PathLike, header: str = "") -> Path:
+    """Write a design file atomically (nothing is changed if writing fails)."""
+    text = header + yaml.safe_dump(design.to_dict(), sort_keys=False, width=110)
+    atomic_write(Path(path), text)
+    return Path(path)
+
+
+def mirror_name(name: str) -> str:
+    """``femur_r`` → ``femur_l`` (names without a side are unchanged)."""
+    return name[:-2] + "_l" if name.endswith("_r") else name
+
+
+def mirror_point(pt: AnyPathPoint) -> AnyPathPoint:
+    """The left-side point of a right-side route point (z → −z, ``_r`` → ``_l``)."""
+    if isinstance(pt, MovingPathPoint):
+        fz = pt.functions[2]
+        fz = Constant(-fz.c) if isinstance(fz, Constant) else MultiplierFunction(fz, -1.0)
+        return MovingPathPoint(mirror_name(pt.name), mirror_name(pt.body), (pt.functions[0], pt.functions[1], fz),
+                               tuple(mirror_name(c) for c in pt.coordinates))  # type: ignore[arg-type]
+    x, y, z = pt.location
+    return PathPoint(mirror_name(pt.name), mirror_name(pt.body), (x, y, -z))
