@@ -18,7 +18,8 @@ def add_parsers(sub) -> None:
                     "--method constrained states and checks the limits (contraction <= kmax at the shortest "
                     "path, pretension within Festo's limit at the longest, fittings and a non-negative "
                     "tendon) and reports infeasible PAMs; --method design prints the design file's sizes.")
-    s.add_argument("--design", help="design file (default: built-in thesis design robot/data/pam_biped.yaml)")
+    s.add_argument("--design", help="design file, or 'thesis' for the thesis design robot/data/thesis_design.yaml "
+                                    "(default: the robot's design robot/data/pam_biped.yaml)")
     s.add_argument("--method", choices=("thesis", "constrained", "design"), default="thesis")
     s.add_argument("--json", action="store_true", help="machine-readable output")
     s.set_defaults(func=cmd_size)
@@ -30,7 +31,8 @@ def add_parsers(sub) -> None:
                     "peak), peak ratio, sign agreement and dead-zone fraction, on a 1-D sweep of the primary "
                     "coordinate (others 0) and 2-D grids primary x secondary; then thesis groups and joint "
                     "capacity envelopes.")
-    s.add_argument("--design", help="design file (default: built-in thesis design)")
+    s.add_argument("--design", help="design file, or 'thesis' for the thesis design (default: the robot's "
+                                    "design robot/data/pam_biped.yaml)")
     s.add_argument("--side", choices=("r", "l"), default="r")
     s.add_argument("-n", type=int, default=41, help="samples of the 1-D sweeps (default 41)")
     s.add_argument("--json", action="store_true", help="machine-readable output")
@@ -38,13 +40,9 @@ def add_parsers(sub) -> None:
 
 
 def _robot(design_path: str | None):
-    from .design import load_design  # noqa: PLC0415
-    from .robot import PamRobot, robot_skeleton  # noqa: PLC0415
+    from .robot import design_robot  # noqa: PLC0415
 
-    skeleton = robot_skeleton()
-    kwargs = {"bodies": skeleton.bodies, "coordinates": skeleton.coordinates}
-    design = load_design(design_path, **kwargs) if design_path else load_design(**kwargs)
-    return PamRobot(design, skeleton)
+    return design_robot(design_path)
 
 
 def sizing_rows(robot, method: str) -> list[dict]:

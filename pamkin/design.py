@@ -42,8 +42,10 @@ from .functions import Constant, MultiplierFunction
 from .osim import AnyPathPoint, MovingPathPoint, PathPoint, _point_to_dict, point_from_dict
 from .urdf_build import ROBOT_DIR, atomic_write
 
-#: The built-in design: the thesis robot's 27 PAMs (sized by the thesis algorithm).
-THESIS_DESIGN = ROBOT_DIR / "data" / "pam_biped.yaml"
+#: The thesis robot's 27 PAMs as designed by hand (sized by the thesis algorithm): the baseline.
+THESIS_DESIGN = ROBOT_DIR / "data" / "thesis_design.yaml"
+#: The robot's current design (starts as the thesis design; ``pamkin optimize --apply`` replaces it).
+ROBOT_DESIGN = ROBOT_DIR / "data" / "pam_biped.yaml"
 DIAMETERS_MM = (10, 20, 40)
 _REQUIRED = ("id", "name", "human_muscles", "primary_coordinate", "diameter_mm", "resting_length_m",
              "tendon_length_m", "points")
@@ -206,15 +208,15 @@ def design_from_dict(data: dict, path: str = "<design>", bodies: list[str] | Non
         raise _fail(path, f"bad top-level field: {e}") from None
 
 
-def load_design(path: str | os.PathLike = THESIS_DESIGN, bodies: list[str] | None = None,
+def load_design(path: str | os.PathLike = ROBOT_DESIGN, bodies: list[str] | None = None,
                 coordinates: list[str] | None = None) -> Design:
-    """Read and validate a design file.
+    """Read and validate a design file (``"thesis"`` names the built-in thesis design).
 
     Raises:
         DataFileError: Malformed YAML, missing fields, unknown diameter/body/coordinate,
             non-positive lengths — naming the file and the PAM.
     """
-    path = Path(path)
+    path = THESIS_DESIGN if str(path) == "thesis" else Path(path)
     try:
         data = yaml.safe_load(path.read_text())
     except FileNotFoundError:

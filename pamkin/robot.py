@@ -120,6 +120,14 @@ def robot_skeleton() -> Model:
 
 
 def thesis_robot() -> PamRobot:
-    """The built-in thesis design (``robot/data/pam_biped.yaml``) on the robot skeleton."""
+    """The thesis design (``robot/data/thesis_design.yaml``) on the robot skeleton."""
+    return design_robot("thesis")
+
+
+def design_robot(design: str | Path | None = None) -> PamRobot:
+    """A design file (default: the robot's current design ``robot/data/pam_biped.yaml``;
+    ``"thesis"``: the thesis design) on the robot skeleton, validated against it."""
     skeleton = robot_skeleton()
-    return PamRobot(load_design(bodies=skeleton.bodies, coordinates=skeleton.coordinates), skeleton)
+    kwargs = {"bodies": skeleton.bodies, "coordinates": skeleton.coordinates}
+    d = load_design(design, **kwargs) if design is not None else load_design(**kwargs)
+    return PamRobot(d, skeleton)

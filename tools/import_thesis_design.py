@@ -1,4 +1,4 @@
-"""Build the built-in design robot/data/pam_biped.yaml from the thesis lab's data in ../shared.
+"""Build the thesis design robot/data/thesis_design.yaml from the thesis lab's data in ../shared.
 
 Usage: python tools/import_thesis_design.py [--check]
 
@@ -121,7 +121,7 @@ def build() -> dict:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--check", action="store_true", help="exit 1 if robot/data/pam_biped.yaml is stale")
+    ap.add_argument("--check", action="store_true", help="exit 1 if robot/data/thesis_design.yaml is stale")
     args = ap.parse_args()
     design = design_from_dict(build(), str(THESIS_DESIGN))
     if args.check:

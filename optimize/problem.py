@@ -1,0 +1,252 @@
+"""The CasADi/IPOPT problem of one actuator: route points, resting length and tendon length.
+
+Decision variables: every body-fixed route point's location in its body frame (a box around its
+seed), the PAM's resting length l0 and its artificial tendon length t. Diameter and the number of
+parallel PAMs are fixed per solve (the outer loop in :mod:`optimize.run`).
+
+World positions are affine in the decision variables (x = p_b + R_b ℓ with numeric placements), so
+the library's own path formulas (:func:`pamkin.paths.path_length`, :func:`pamkin.paths.path_moment_arm`,
+:func:`pamkin.paths.point_velocity`) and Festo force model (:func:`pamkin.festo.force`) give lengths,
+moment arms, contractions, forces and torques as CasADi expressions.
+
+Objective: Σ_c w_c · mean_s (τ_robot − τ_human)² / peak_c² + λ Σ_i |ℓ_i − ℓ_i⁰|² / region_i².
+Constraints (every constraint sample): −pretension ≤ ε ≤ kmax(l0); successive points at least
+``min_point_distance`` apart; interior points of every segment clear the bone-shaft capsules by
+capsule radius + PAM radius; t ≥ 0 (buildable: PAM + fittings + tendon fit the route).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from pamkin import festo
+from pamkin.paths import path_length, path_moment_arm, point_velocity
+
+from .config import RunConfig
+from .samples import CLEARANCE_MARGIN, CLEARANCE_T, STRAIN_MARGIN, ActuatorData, is_free
+
+
+@dataclass
+class Solution:
+    """Result of one solve."""
+
+    diameter_mm: int
+    n_parallel: int
+    points: list[np.ndarray]            # body-frame locations of every route point (moving: unchanged)
+    rest_length: float
+    tendon_length: float
+    objective: float
+    status: str
+    success: bool
+    violations: dict[str, float]        # constraint family -> worst violation (> 0 violated)
+    nrmse_samples: dict[str, float]     # per objective label, on the optimisation samples
+    torque_samples: dict[str, np.ndarray]
+    seconds: float
+    z: np.ndarray | None = None
+
+
+def _point_segment_distance(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Distances (S,) from points P (S, 3) to segments A–B (S, 3)."""
+    AB = B - A
+    u = np.clip(np.einsum("sk,sk->s", P - A, AB) / np.einsum("sk,sk->s", AB, AB), 0.0, 1.0)
+    return np.linalg.norm(P - (A + AB * u[:, None]), axis=1)
+
+
+def _dm(a: np.ndarray) -> ca.DM:
+    return ca.DM(np.ascontiguousarray(a))
+
+
+class ActuatorProblem:
+    """CasADi expressions of one actuator's problem for a given diameter and parallel count."""
+
+    def __init__(self, data: ActuatorData, cfg: RunConfig, diameter: int,
+                 seed_points: list[np.ndarray], regions: list[list[float]]) -> None:
+        self.data, self.cfg, self.d = data, cfg, diameter
+        self.npar = ca.SX.sym("n_parallel")      # a parameter: one solver serves 1..3 parallel PAMs
+        self._solver = None
+        pts = data.pam.points
+        self.free = [i for i, pt in enumerate(pts) if is_free(pt)]
+        self.seed = [np.asarray(seed_points[i], float) for i in range(len(pts))]
+        self.regions = regions
+        nz = 3 * len(self.free) + 2
+        self.z = ca.SX.sym("z", nz)
+        loc = {i: self.z[3 * k:3 * k + 3] for k, i in enumerate(self.free)}
+        self.l0 = self.z[nz - 2]
+        self.t = self.z[nz - 1]
+        S = data.q.shape[0]
+        # world positions (3, S) of every route point
+        X = []
+        for i, pt in enumerate(pts):
+            if i in loc:
+                b = data.body_of_point[i]
+                R = data.R[:, b]                                  # (S, 3, 3)
+                x = _dm(data.p[:, b].T)
+                for j in range(3):
+                    x = x + _dm(R[:, :, j].T) * loc[i][j]
+                X.append(x)
+            else:
+                X.append(_dm(data.moving_x[i].T))
+        self.X = X
+        self.L = path_length(X, xp=ca)                            # (1, S)
+        pam_len = self.L - 2 * data.fitting_length - self.t
+        self.strain = (self.l0 - pam_len) / self.l0
+        self.force = self.npar * festo.force(self.strain, self.l0, data.pressure, diameter, model=data.force_model)
+        self.kmax = festo.kmax(self.l0, diameter, model=data.force_model)
+        # objective
+        J = 0
+        self.torque = {}
+        for c, rows, th, w, label in data.objective:
+            V = []
+            for i, x in enumerate(X):
+                if i in loc:
+                    b = data.body_of_point[i]
+                    V.append(point_velocity(_dm(data.omega[c][:, b].T), _dm(data.tau[c][:, b].T), x, xp=ca))
+                else:
+                    V.append(_dm(data.moving_v[i][c].T))
+            r = path_moment_arm(X, V, xp=ca)
+            tau_r = self.force * r
+            cols = list(map(int, rows))
+            tr = tau_r[0, cols] if tau_r.shape[0] == 1 else tau_r[cols]
+            peak = float(np.max(np.abs(th))) if len(th) else 0.0
+            self.torque[label] = (tr, th, peak)
+            if peak > 1e-9:
+                J = J + w * ca.sumsqr(tr - _dm(th[None, :])) / (len(cols) * peak ** 2)
+        reg = 0
+        for k, i in enumerate(self.free):
+            sc = np.maximum(np.asarray(regions[i], float), 1e-3)
+            reg = reg + ca.sumsqr((loc[i] - _dm(self.seed[i])) / _dm(sc))
+        self.J = J + cfg.regularization * reg
+        # constraints
+        g, lbg, ubg, fam = [], [], [], []
+        ci = [int(s) for s in data.constraint_idx]
+        eps_c = self.strain[0, ci]
+        kmax_lim = cfg.kmax_scale * self.kmax - STRAIN_MARGIN
+        g.append((eps_c - kmax_lim).T); lbg += [-np.inf] * len(ci); ubg += [0.0] * len(ci)
+        fam += ["contraction <= kmax"] * len(ci)
+        pre = max(cfg.pretension_scale * festo.max_pretension(diameter) - STRAIN_MARGIN, 0.0)
+        g.append(eps_c.T); lbg += [-pre] * len(ci); ubg += [np.inf] * len(ci)
+        fam += ["stretch <= Festo pretension limit"] * len(ci)
+        if cfg.min_point_distance_m > 0:
+            for a, b in zip(range(len(X) - 1), range(1, len(X))):
+                same = (a in loc and b in loc and data.body_of_point[a] == data.body_of_point[b])
+                cols = ci[:1] if same else ci        # within one body the distance is constant
+                dv = X[b][:, cols] - X[a][:, cols]
+                g.append(ca.sum1(dv * dv).T)
+                lbg += [cfg.min_point_distance_m ** 2] * len(cols)
+                ubg += [np.inf] * len(cols)
+                fam += [f"distance point {a + 1}-{b + 1} >= min_point_distance"] * len(cols)
+        radius = diameter / 2000.0
+        # bone clearance on a subset of the constraint samples; pairs (segment point, capsule) that
+        # cannot come closer than required whatever the points do within their boxes are skipped
+        cc = [int(s_) for s_ in data.clearance_idx]
+        reach = [float(np.linalg.norm(regions[i])) if i in loc else 0.0 for i in range(len(X))]
+        seedX = [np.array(ca.Function("x", [self.z], [x])(np.zeros(nz))) if i not in loc else None
+                 for i, x in enumerate(X)]
+        for cap, wa, wb in data.capsules:
+            A, B = _dm(wa[cc].T), _dm(wb[cc].T)
+            AB = B - A
+            ab2 = ca.sum1(AB * AB)
+            need = cap.radius + radius + CLEARANCE_MARGIN
+            for a in range(len(X) - 1):
+                xa = self._seed_world(a, seedX[a])
+                xb = self._seed_world(a + 1, seedX[a + 1])
+                for tpar in CLEARANCE_T:
+                    P0 = (1 - tpar) * xa + tpar * xb                       # (S, 3) seed positions
+                    d0 = _point_segment_distance(P0[cc], wa[cc], wb[cc])
+                    if d0.min() - max(reach[a], reach[a + 1]) > need + 0.005:
+                        continue
+                    P = (1 - tpar) * X[a][:, cc] + tpar * X[a + 1][:, cc]
+                    u = ca.fmin(ca.fmax(ca.sum1((P - A) * AB) / ab2, 0), 1)
+                    D = P - (A + AB * ca.repmat(u, 3, 1))
+                    g.append(ca.sum1(D * D).T)
+                    lbg += [need ** 2] * len(cc)
+                    ubg += [np.inf] * len(cc)
+                    fam += [f"segment {a + 1}-{a + 2} clears {cap.name}"] * len(cc)
+        self.g = ca.vertcat(*g)
+        self.lbg, self.ubg, self.family = np.array(lbg), np.array(ubg), fam
+        # variable bounds
+        lbx, ubx, x0 = [], [], []
+        for i in self.free:
+            r = np.asarray(regions[i], float)
+            lbx += list(self.seed[i] - r)
+            ubx += list(self.seed[i] + r)
+        lmin, lmax = festo.nominal_length_range(diameter)
+        lbx += [lmin, 0.0]
+        ubx += [lmax, 5.0]
+        self.lbx, self.ubx = np.array(lbx), np.array(ubx)
+
+    def _seed_world(self, i: int, fixed: np.ndarray | None) -> np.ndarray:
+        """(S, 3) world positions of route point ``i`` at its seed location."""
+        if fixed is not None:
+            return np.asarray(fixed).T
+        b = self.data.body_of_point[i]
+        return self.data.p[:, b] + self.data.R[:, b] @ self.seed[i]
+
+    def initial_guess(self, points: list[np.ndarray], rest: float | None, tendon: float | None) -> np.ndarray:
+        """Start vector: given points; l0 and t from the seed or sized so ε spans [0, 0.8·kmax]."""
+        z = []
+        for i in self.free:
+            z += list(np.clip(points[i], self.seed[i] - self.regions[i], self.seed[i] + self.regions[i]))
+        f = ca.Function("L", [self.z], [self.L])  # lengths do not depend on n_parallel
+        L = np.array(f(np.array(z + [1.0, 0.0]))).ravel()
+        if rest is None or tendon is None or tendon < 0:
+            km = float(festo.kmax(0.5, self.d, model=self.data.force_model))
+            delta = L.max() - L.min()
+            rest = max(delta / (0.8 * km), 1e-3)
+            rest = min(rest, L.max() - 2 * self.data.fitting_length - 1e-3)
+            tendon = L.max() - 2 * self.data.fitting_length - rest
+        lmin, lmax = festo.nominal_length_range(self.d)
+        rest = float(np.clip(rest, lmin, lmax))
+        tendon = float(max(tendon, 0.0))
+        return np.array(z + [rest, tendon])
+
+    def solver(self):
+        """The IPOPT solver (built once; CasADi derives exact Hessians of the SX expressions)."""
+        if self._solver is None:
+            nlp = {"x": self.z, "p": self.npar, "f": self.J, "g": self.g}
+            opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": self.cfg.max_iter,
+                    "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.acceptable_iter": 5,
+                    "ipopt.mu_strategy": "adaptive", "ipopt.sb": "yes"}
+            self._solver = ca.nlpsol("pam", "ipopt", nlp, opts)
+        return self._solver
+
+    def solve(self, z0: np.ndarray, n_parallel: int = 1) -> Solution:
+        """Solve from ``z0`` with ``n_parallel`` PAMs on the route."""
+        t0 = time.perf_counter()
+        solver = self.solver()
+        res = solver(x0=z0, p=n_parallel, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg)
+        stats = solver.stats()
+        z = np.array(res["x"]).ravel()
+        return self._solution(z, float(res["f"]), stats.get("return_status", "?"), bool(stats.get("success")),
+                              time.perf_counter() - t0, n_parallel)
+
+    def _solution(self, z: np.ndarray, f: float, status: str, success: bool, seconds: float,
+                  n_parallel: int = 1) -> Solution:
+        gval = np.array(ca.Function("g", [self.z, self.npar], [self.g])(z, n_parallel)).ravel()
+        viol = np.maximum(self.lbg - gval, 0) + np.maximum(gval - self.ubg, 0)
+        violations: dict[str, float] = {}
+        for fam, v in zip(self.family, viol):
+            violations[fam] = max(violations.get(fam, 0.0), float(v))
+        pts = [p.copy() for p in self.seed]
+        for k, i in enumerate(self.free):
+            pts[i] = z[3 * k:3 * k + 3].copy()
+        nrmse, torques = {}, {}
+        for label, (tr, th, peak) in self.torque.items():
+            val = np.array(ca.Function("t", [self.z, self.npar], [tr])(z, n_parallel)).ravel()
+            torques[label] = val
+            nrmse[label] = float(np.sqrt(np.mean((val - th) ** 2)) / peak) if peak > 0 else float("nan")
+        return Solution(self.d, n_parallel, pts, float(z[-2]), float(z[-1]), f, status,
+                        success and max(viol, default=0) <= 1e-6, violations, nrmse, torques, seconds, z.copy())
+
+    def finalize(self, sol: Solution) -> Solution:
+        """The solution as saved: the tendon clipped at 0 (IPOPT's bound relaxation can leave it at
+        −1e-9), with torques and constraint values re-evaluated there."""
+        z = sol.z.copy()
+        z[-1] = max(z[-1], 0.0)
+        out = self._solution(z, sol.objective, sol.status, sol.success, sol.seconds, sol.n_parallel)
+        out.success = sol.success and max(out.violations.values(), default=0.0) <= 1e-6
+        return out

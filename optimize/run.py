@@ -1,0 +1,251 @@
+"""An optimisation run: every actuator's problem, in parallel, with an outer loop over diameter
+and parallel count, multi-start, an independent numpy check and the run folder.
+
+Run folder contents: ``design.yaml`` (same format as the built-in design), ``log.txt``,
+``summary.json``, ``before_after.png``. Every file is written atomically; the robot data is
+changed only by :func:`apply_design` (``pamkin optimize --apply``), and only when every
+actuator's solve succeeded.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing as mp
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from pamkin.design import ROBOT_DESIGN, Design, Pam, load_design, save_design
+from pamkin.errors import PamkinError
+from pamkin.urdf_build import ROBOT_URDF, atomic_write, render_robot_urdf
+
+from .config import RunConfig
+from .samples import actuator_data, is_free
+
+
+class InfeasibleError(PamkinError):
+    """An actuator's problem has no feasible point; the message names the violated constraints."""
+
+
+@dataclass
+class ActuatorResult:
+    """Best solution of one actuator and every attempt's outcome."""
+
+    id: int
+    name: str
+    pam: Pam
+    status: str
+    success: bool
+    attempts: list[dict] = field(default_factory=list)
+    nrmse_samples: dict[str, float] = field(default_factory=dict)
+    torque_samples: dict[str, np.ndarray] = field(default_factory=dict)
+    sample_q: dict[str, np.ndarray] = field(default_factory=dict)
+    violations: dict[str, float] = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+# worker state (fork): set before the pool starts
+_STATE: dict = {}
+
+
+def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
+    """Outer loop (diameter, n_parallel) and multi-start for one actuator (runs in a worker)."""
+    from .problem import ActuatorProblem  # noqa: PLC0415  (casadi only in workers / optimiser)
+
+    k, seed_index = task
+    cfg: RunConfig = _STATE["cfg"]
+    data = _STATE["data"][k]
+    pam: Pam = data.pam
+    t0 = time.perf_counter()
+    seed = [np.array(getattr(p, "location", (0.0, 0.0, 0.0)), float) for p in pam.points]
+    regions = [np.array(cfg.region(pam.id, p.name), float) for p in pam.points]
+    attempts, best = [], None
+    problems: dict[int, ActuatorProblem] = {}
+    best_problem: list = [None]
+
+    def attempt(d: int, n: int, points, rest, tendon, label: str):
+        nonlocal best
+        if d not in problems:
+            problems[d] = ActuatorProblem(data, cfg, d, seed, regions)
+        prob = problems[d]
+        sol = prob.solve(prob.initial_guess(points, rest, tendon), n)
+        attempts.append({"diameter_mm": d, "n_parallel": n, "start": label, "status": sol.status,
+                         "objective": sol.objective, "feasible": sol.success, "seconds": round(sol.seconds, 3)})
+        better = best is None or (sol.success and not best.success) or \
+            (sol.success == best.success and sol.objective < best.objective - 1e-12)
+        if better:
+            best = sol
+            best_problem[0] = prob
+        return sol
+
+    same_seed = (pam.diameter_mm, pam.n_parallel)
+    results = {}
+    for d in cfg.diameters_mm:
+        warm = (pam.resting_length_m, pam.tendon_length_m) if (d, 1) == same_seed else (None, None)
+        results[(d, 1)] = attempt(d, 1, seed, *warm, "seed")
+    feasible = {key: s for key, s in results.items() if s.success}
+    if feasible:
+        d_best = min(feasible, key=lambda key: feasible[key].objective)[0]
+        prev = feasible[(d_best, 1)]
+        for n in range(2, cfg.max_parallel + 1):
+            s = attempt(d_best, n, prev.points, prev.rest_length, prev.tendon_length, "seed")
+            if not (s.success and s.objective < 0.95 * prev.objective):
+                break
+            prev = s
+    if best is not None and best.success and best.objective > cfg.multistart_threshold:
+        rng = np.random.default_rng(cfg.seed + 1000 * pam.id + seed_index)
+        for m in range(cfg.multistart):
+            pts = [p + rng.uniform(-0.5, 0.5, 3) * r if is_free(pt) else p
+                   for p, r, pt in zip(best.points, regions, pam.points)]
+            attempt(best.diameter_mm, best.n_parallel, pts, None, None, f"perturbed {m + 1}")
+    assert best is not None
+    best = best_problem[0].finalize(best)
+    new_points = []
+    for pt, loc in zip(pam.points, best.points):
+        if is_free(pt):
+            new_points.append(type(pt)(pt.name, pt.body, tuple(float(v) for v in loc)))
+        else:
+            new_points.append(pt)
+    tendon = best.tendon_length
+    new = Pam(pam.id, pam.name, pam.human_muscles, pam.primary_coordinate, pam.secondary_coordinates,
+              best.diameter_mm, best.n_parallel, best.rest_length, tendon, tuple(new_points),
+              pam.notes)
+    sample_q = {label: data.q[rows] for _, rows, _, _, label in data.objective}
+    return ActuatorResult(pam.id, pam.name, new, best.status, best.success, attempts, best.nrmse_samples,
+                          best.torque_samples, sample_q, best.violations, time.perf_counter() - t0)
+
+
+def _progress(done: int, total: int, r: ActuatorResult, stream) -> None:
+    bar = "#" * int(30 * done / total)
+    e = next(iter(r.nrmse_samples.values()), float("nan"))
+    print(f"\r[{bar:30s}] {done}/{total}  actuator {r.id:2d} {r.name[:24]:24s} "
+          f"{'ok ' if r.success else 'FAIL'} nrmse {e:.3f} ({r.seconds:.1f} s)", file=stream, end="\n", flush=True)
+
+
+def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[ActuatorResult]:
+    """Solve every selected actuator of ``seed_design`` (right side)."""
+    import pamkin  # noqa: PLC0415
+    from pamkin.rom import load_rom  # noqa: PLC0415
+
+    human = pamkin.gait2392()
+    rom = load_rom(seed_design.rom, "r")
+    ids = cfg.actuators or [p.id for p in seed_design.pams]
+    unknown = [i for i in ids if i not in {p.id for p in seed_design.pams}]
+    if unknown:
+        raise PamkinError(f"unknown actuator id(s) {unknown}")
+    pams = [seed_design.pam(i) for i in ids]
+    data = [actuator_data(p, human, rom, cfg, seed_design.fitting_length_m) for p in pams]
+    _STATE.update(cfg=cfg, data=data)
+    tasks = [(k, 0) for k in range(len(pams))]
+    results: list[ActuatorResult] = []
+    if cfg.workers > 1 and len(tasks) > 1:
+        ctx = mp.get_context("fork")
+        with ctx.Pool(min(cfg.workers, len(tasks))) as pool:
+            for r in pool.imap_unordered(_solve_actuator, tasks):
+                results.append(r)
+                _progress(len(results), len(tasks), r, stream)
+    else:
+        for t in tasks:
+            results.append(_solve_actuator(t))
+            _progress(len(results), len(tasks), results[-1], stream)
+    order = {i: k for k, i in enumerate(ids)}
+    return sorted(results, key=lambda r: order[r.id])
+
+
+def check_results(results: list[ActuatorResult]) -> None:
+    """Raise :class:`InfeasibleError` naming the violated constraints of infeasible actuators."""
+    bad = [r for r in results if not r.success]
+    if bad:
+        lines = []
+        for r in bad:
+            worst = sorted(((v, k) for k, v in r.violations.items() if v > 1e-6), reverse=True)[:3]
+            what = "; ".join(f"{k} (violated by {v:.3g})" for v, k in worst) or r.status
+            lines.append(f"actuator {r.id} {r.name}: {r.status}: {what}")
+        raise InfeasibleError("infeasible: " + " | ".join(lines))
+
+
+def apply_design(design: Design, design_path: Path = ROBOT_DESIGN, urdf_path: Path = ROBOT_URDF) -> None:
+    """Write a design into the robot data and regenerate its URDF (each file atomically).
+
+    The URDF is rendered from a temporary copy first, so a failure leaves both files unchanged.
+    """
+    import tempfile  # noqa: PLC0415
+
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp_design = Path(tmp) / Path(design_path).name
+        save_design(design, tmp_design, _HEADER)
+        urdf = render_robot_urdf(design_path=tmp_design).replace(str(Path(tmp)), "")
+    save_design(design, design_path, _HEADER)
+    atomic_write(urdf_path, urdf)
+
+
+_HEADER = ("# The PAM robot's design (right side; the left side is the mirror image).\n"
+           "# Written by `pamkin optimize --apply`; format: pamkin.design.\n")
+
+
+def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -> dict:
+    """Run an optimisation into ``out_dir`` (created); optionally apply the result.
+
+    Returns:
+        The summary (also written to ``out_dir/summary.json``).
+    """
+    from .check import summarize  # noqa: PLC0415
+    from .plots import before_after_plot  # noqa: PLC0415
+
+    import pamkin  # noqa: PLC0415
+    from pamkin.robot import robot_skeleton  # noqa: PLC0415
+
+    t0 = time.perf_counter()
+    skeleton = robot_skeleton()
+    kw = {"bodies": skeleton.bodies, "coordinates": skeleton.coordinates}
+    seed = load_design(cfg.design, **kw) if cfg.design else load_design(**kw)
+    if cfg.warm_start:
+        warm = load_design(Path(cfg.warm_start) / "design.yaml", **kw)
+        for p in warm.pams:
+            if p.id in {q.id for q in seed.pams}:
+                seed = seed.replace_pam(p)
+    seed = Design(seed.name, seed.pams, cfg.pressure_Pa, cfg.force_model, seed.fitting_length_m, seed.rom,
+                  seed.description, seed.path, dict(seed.extra))
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    log = [f"pamkin optimize: seed design {seed.name!r} ({seed.path}), config {cfg.source or 'defaults'}",
+           f"workers {cfg.workers}, multistart {cfg.multistart}, diameters {cfg.diameters_mm}, "
+           f"max_parallel {cfg.max_parallel}, force model {cfg.force_model}, pressure {cfg.pressure_Pa:.0f} Pa"]
+    results = solve_all(seed, cfg, stream)
+    solve_seconds = time.perf_counter() - t0
+    new = seed
+    for r in results:
+        new = new.replace_pam(r.pam)
+    new = Design(f"optimized from {seed.name}", new.pams, new.pressure_Pa, new.force_model,
+                 new.fitting_length_m, new.rom, f"pamkin optimize run {out_dir.name}", "", dict(new.extra))
+    for r in results:
+        log.append(f"actuator {r.id} {r.name}: {r.status} in {r.seconds:.1f} s; attempts: " +
+                   "; ".join(f"{a['diameter_mm']} mm x{a['n_parallel']} {a['start']}: {a['status']} "
+                             f"J={a['objective']:.4g}" for a in r.attempts))
+    summary = summarize(seed, new, results, cfg)
+    summary["solve_seconds"] = round(solve_seconds, 1)
+    summary["total_seconds"] = round(time.perf_counter() - t0, 1)
+    save_design(new, out_dir / "design.yaml", _HEADER)
+    atomic_write(out_dir / "summary.json", json.dumps(summary, indent=2))
+    before_after_plot(seed, new, out_dir / "before_after.png")
+    log.append(f"total {summary['total_seconds']} s (solves {solve_seconds:.1f} s)")
+    atomic_write(out_dir / "log.txt", "\n".join(log) + "\n")
+    try:
+        check_results(results)
+    except InfeasibleError:
+        summary["applied"] = False
+        atomic_write(out_dir / "summary.json", json.dumps(summary, indent=2))
+        raise
+    if apply:
+        apply_design(new)
+        summary["applied"] = True
+        atomic_write(out_dir / "summary.json", json.dumps(summary, indent=2))
+    return summary
+
+
+def default_workers() -> int:
+    return max(1, min(2, os.cpu_count() or 1))
