@@ -304,6 +304,19 @@ class PathSet:
         X = state.body_p[:, self.point_body] + np.einsum("npij,npj->npi", R, local)
         return X, dlocal
 
+    def polylines(self, state: KinematicsState, k: int = 0) -> list[np.ndarray]:
+        """World positions of the points in effect on every path at configuration ``k`` [m].
+
+        Returns:
+            One (n_points_in_effect, 3) array per path, origin first; a ConditionalPathPoint
+            appears only while its coordinate lies in its range (OpenSim's tolerance).
+        """
+        X = self.point_positions(state)[0][k]
+        keep = np.ones(self.n_points, dtype=bool)
+        v = state.q[k, self._cond_coord]
+        keep[self._cond_ids] = (v >= self._cond_lo) & (v <= self._cond_hi)
+        return [X[a:b][keep[a:b]] for a, b in zip(self._path_start, self._path_end)]
+
     def variant_masks(self, q: np.ndarray) -> np.ndarray:
         """(N, n_variants) boolean: which path variant is in effect at each configuration."""
         N = q.shape[0]
