@@ -31,6 +31,7 @@ Example (every key optional; these are the defaults)::
     bone_clearance = true        # route segments clear the bone-shaft capsules by the PAM radius
     kmax_scale = 1.0             # contraction limit = kmax_scale * kmax(l0)
     pretension_scale = 1.0       # stretch limit = pretension_scale * Festo's limit
+    fix_lengths = false          # keep the seed resting and tendon lengths (move attachment points only)
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
 """
@@ -49,7 +50,7 @@ _SECTIONS = {
                 "regularization": "regularization"},
     "limits": {"region_m": "region_m", "min_point_distance_m": "min_point_distance_m",
                "bone_clearance": "bone_clearance", "kmax_scale": "kmax_scale",
-               "pretension_scale": "pretension_scale"},
+               "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths"},
 }
 
 
@@ -80,6 +81,7 @@ class RunConfig:
     bone_clearance: bool = True
     kmax_scale: float = 1.0
     pretension_scale: float = 1.0
+    fix_lengths: bool = False
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     source: str = ""
 

@@ -175,8 +175,13 @@ class ActuatorProblem:
             lbx += list(self.seed[i] - r)
             ubx += list(self.seed[i] + r)
         lmin, lmax = festo.nominal_length_range(diameter)
-        lbx += [lmin, 0.0]
-        ubx += [lmax, 5.0]
+        if cfg.fix_lengths:
+            rest, tendon = data.pam.resting_length_m, max(data.pam.tendon_length_m, 0.0)
+            lbx += [rest, tendon]
+            ubx += [rest, tendon]
+        else:
+            lbx += [lmin, 0.0]
+            ubx += [lmax, 5.0]
         self.lbx, self.ubx = np.array(lbx), np.array(ubx)
 
     def _seed_world(self, i: int, fixed: np.ndarray | None) -> np.ndarray:
@@ -193,15 +198,16 @@ class ActuatorProblem:
             z += list(np.clip(points[i], self.seed[i] - self.regions[i], self.seed[i] + self.regions[i]))
         f = ca.Function("L", [self.z], [self.L])  # lengths do not depend on n_parallel
         L = np.array(f(np.array(z + [1.0, 0.0]))).ravel()
-        if rest is None or tendon is None or tendon < 0:
+        if self.cfg.fix_lengths:
+            rest, tendon = self.data.pam.resting_length_m, max(self.data.pam.tendon_length_m, 0.0)
+        elif rest is None or tendon is None or tendon < 0:
             km = float(festo.kmax(0.5, self.d, model=self.data.force_model))
             delta = L.max() - L.min()
             rest = max(delta / (0.8 * km), 1e-3)
             rest = min(rest, L.max() - 2 * self.data.fitting_length - 1e-3)
             tendon = L.max() - 2 * self.data.fitting_length - rest
-        lmin, lmax = festo.nominal_length_range(self.d)
-        rest = float(np.clip(rest, lmin, lmax))
-        tendon = float(max(tendon, 0.0))
+        rest = float(np.clip(rest, self.lbx[-2], self.ubx[-2]))
+        tendon = float(np.clip(tendon, self.lbx[-1], self.ubx[-1]))
         return np.array(z + [rest, tendon])
 
     def solver(self):

@@ -168,13 +168,16 @@ def check_results(results: list[ActuatorResult]) -> None:
         raise InfeasibleError("infeasible: " + " | ".join(lines))
 
 
-def apply_design(design: Design, design_path: Path = ROBOT_DESIGN, urdf_path: Path = ROBOT_URDF) -> None:
+def apply_design(design: Design, design_path: Path | None = None, urdf_path: Path | None = None) -> None:
     """Write a design into the robot data and regenerate its URDF (each file atomically).
 
     The URDF is rendered from a temporary copy first, so a failure leaves both files unchanged.
+    Defaults: ``robot/data/pam_biped.yaml`` and ``urdf/pam_biped.urdf``.
     """
     import tempfile  # noqa: PLC0415
 
+    design_path = Path(design_path or ROBOT_DESIGN)
+    urdf_path = Path(urdf_path or ROBOT_URDF)
     with tempfile.TemporaryDirectory() as tmp:
         tmp_design = Path(tmp) / Path(design_path).name
         save_design(design, tmp_design, _HEADER)

@@ -99,8 +99,18 @@ def _grid(model: Model, rom: RangeOfMotion, coords: list[str], n: int) -> np.nda
 
 
 def actuator_data(pam: Pam, human: Model, rom: RangeOfMotion, cfg: RunConfig, fitting_length: float,
-                  human_muscles: tuple[str, ...] | None = None) -> ActuatorData:
-    """Sample the problem of one (right-side) PAM."""
+                  target=None) -> ActuatorData:
+    """Sample the problem of one (right-side) PAM.
+
+    Args:
+        pam: The seed PAM (its route, coordinates and human muscles).
+        human: The model giving kinematics (and, by default, the target torques).
+        rom: Range of motion of the samples.
+        cfg: Run description.
+        fitting_length: One fitting [m].
+        target: Optional callable q (N, n_coordinates) -> target torques (N, n_coordinates) [N·m];
+            default: the summed torque of the PAM's human muscles at full activation.
+    """
     prim = pam.primary_coordinate
     secs = [c for c in pam.secondary_coordinates]
     blocks, objective = [], []
@@ -128,14 +138,15 @@ def actuator_data(pam: Pam, human: Model, rom: RangeOfMotion, cfg: RunConfig, fi
     blocks.append(q3)
     q = np.vstack(blocks)
 
-    # human target torques
-    muscles = human_muscles or pam.human_muscles
-    idx = [human.muscles.index(m) for m in muscles]
-    T = human.torques(q)
+    # target torques
+    if target is None:
+        idx = [human.muscles.index(m) for m in pam.human_muscles]
+        T = human.torques(q)[:, idx].sum(axis=1)
+    else:
+        T = np.asarray(target(q), float)
     obj = []
     for c, rows, w, label in objective:
-        th = T[rows][:, idx, human.coordinates.index(c)].sum(axis=1)
-        obj.append((c, rows, th, w, label))
+        obj.append((c, rows, T[rows, human.coordinates.index(c)], w, label))
 
     # kinematics of the route's bodies
     kin = human.kinematics

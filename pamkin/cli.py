@@ -83,10 +83,17 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--json", action="store_true", help="machine-readable output")
     s.set_defaults(func=cmd_info)
 
-    from . import cli_robot, cli_torques  # noqa: PLC0415
+    from . import cli_robot, cli_torques, cli_visual  # noqa: PLC0415
 
     cli_torques.add_parsers(sub)
     cli_robot.add_parsers(sub)
+    from . import cli_optimize  # noqa: PLC0415
+
+    cli_optimize.add_parsers(sub)
+    from . import cli_export  # noqa: PLC0415
+
+    cli_export.add_parsers(sub)
+    cli_visual.add_parsers(sub)
     return p
 
 

@@ -39,7 +39,14 @@ import yaml
 
 from .errors import DataFileError
 from .functions import Constant, MultiplierFunction
-from .osim import AnyPathPoint, MovingPathPoint, PathPoint, _point_to_dict, point_from_dict
+from .osim import (
+    AnyPathPoint,
+    ConditionalPathPoint,
+    MovingPathPoint,
+    PathPoint,
+    _point_to_dict,
+    point_from_dict,
+)
 from .urdf_build import ROBOT_DIR, atomic_write
 
 #: The thesis robot's 27 PAMs as designed by hand (sized by the thesis algorithm): the baseline.
@@ -246,4 +253,7 @@ def mirror_point(pt: AnyPathPoint) -> AnyPathPoint:
         return MovingPathPoint(mirror_name(pt.name), mirror_name(pt.body), (pt.functions[0], pt.functions[1], fz),
                                tuple(mirror_name(c) for c in pt.coordinates))  # type: ignore[arg-type]
     x, y, z = pt.location
+    if isinstance(pt, ConditionalPathPoint):
+        return ConditionalPathPoint(mirror_name(pt.name), mirror_name(pt.body), (x, y, -z),
+                                    coordinate=mirror_name(pt.coordinate), range=pt.range)
     return PathPoint(mirror_name(pt.name), mirror_name(pt.body), (x, y, -z))

@@ -314,8 +314,11 @@ if numba is not None:
         M = m_start.shape[0]
         nch = min(N, 64)
         for ch in prange(nch):
-            jR = np.empty((nj, 3, 3))
-            jp = np.empty((nj, 3))
+            jR = np.empty((nj + 1, 3, 3))   # slot nj: the universe (identity), for bodies welded to ground
+            jp = np.zeros((nj + 1, 3))
+            for r in range(3):
+                for c in range(3):
+                    jR[nj, r, c] = 1.0 if r == c else 0.0
             ja = np.empty((nj, 3))
             dvj = np.empty(nj)
             Rb = np.empty((3, 3))

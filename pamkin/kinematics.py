@@ -125,7 +125,8 @@ class Kinematics:
             if fid >= pin_model.nframes:
                 raise ConfigurationError(f"body {name!r} has no frame in the URDF")
             fr = pin_model.frames[fid]
-            self._body_joint[b] = fr.parentJoint - 1
+            # index n_joints stands for the universe (bodies welded to ground have no moving joint)
+            self._body_joint[b] = fr.parentJoint - 1 if fr.parentJoint > 0 else nj
             self._body_R[b] = fr.placement.rotation
             self._body_p[b] = fr.placement.translation
             self._body_frame_id.append(fid)
@@ -133,7 +134,7 @@ class Kinematics:
         self.body_support = np.zeros((len(self.bodies), nj), dtype=bool)
         for b in range(len(self.bodies)):
             j = self._body_joint[b]
-            while j >= 0:
+            while 0 <= j < nj:
                 self.body_support[b, j] = True
                 j = self._parent[j]
         # coupling matrix structure: coordinate c drives joints J_c
@@ -218,8 +219,10 @@ class Kinematics:
         N = q.shape[0]
         v, dv = self.joint_values(q)
         nj = self.n_joints
-        R = np.empty((N, nj, 3, 3))
-        p = np.empty((N, nj, 3))
+        R = np.empty((N, nj + 1, 3, 3))   # the last slot is the universe (identity)
+        p = np.empty((N, nj + 1, 3))
+        R[:, nj] = np.eye(3)
+        p[:, nj] = 0.0
         for j in range(nj):
             par = self._parent[j]
             a = self._axis[j]
@@ -235,11 +238,11 @@ class Kinematics:
             else:
                 R[:, j] = Rb
                 p[:, j] = pb + (Rb @ a) * v[:, j, None]
-        axis_w = np.einsum("njab,jb->nja", R, self._axis)
+        axis_w = np.einsum("njab,jb->nja", R[:, :nj], self._axis)
         bR = R[:, self._body_joint] @ self._body_R
         bp = p[:, self._body_joint] + np.einsum("nbij,bj->nbi", R[:, self._body_joint], self._body_p)
         q.setflags(write=False)
-        return KinematicsState(q, R, p, axis_w, dv, bR, bp)
+        return KinematicsState(q, R[:, :nj], p[:, :nj], axis_w, dv, bR, bp)
 
     def body_transforms(self, q: ConfigLike) -> dict[str, np.ndarray]:
         """Homogeneous transforms (N, 4, 4) of every body frame in ground, by body name."""

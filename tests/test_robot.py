@@ -187,3 +187,13 @@ def test_builtin_design_is_not_stale():
     proc = subprocess.run([sys.executable, str(ROOT / "tools" / "import_thesis_design.py"), "--check"],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_mirror_point_keeps_conditions():
+    from pamkin.design import mirror_point
+    from pamkin.osim import ConditionalPathPoint
+
+    p = ConditionalPathPoint("c", "tibia_r", (0.01, -0.02, 0.03), coordinate="knee_angle_r", range=(-1.0, 0.1))
+    m = mirror_point(p)
+    assert isinstance(m, ConditionalPathPoint)
+    assert (m.body, m.location, m.coordinate, m.range) == ("tibia_l", (0.01, -0.02, -0.03), "knee_angle_l", (-1.0, 0.1))

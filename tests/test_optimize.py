@@ -1,0 +1,171 @@
+"""The attachment-point optimiser: a problem with a known optimum, CasADi = numpy, infeasible runs,
+--apply, warm start, configuration errors, and (slow) the full default run's goals."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pamkin
+from optimize import run as run_mod
+from optimize.config import RunConfig, load_config
+from optimize.problem import ActuatorProblem
+from optimize.run import InfeasibleError, run
+from optimize.samples import actuator_data
+from pamkin.design import Design, Pam, ROBOT_DESIGN, load_design
+from pamkin.errors import DataFileError
+from pamkin.osim import PathPoint
+from pamkin.robot import PamRobot, thesis_robot
+from pamkin.rom import RangeOfMotion, load_rom
+
+DATA = Path(__file__).resolve().parent / "data"
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def test_known_optimum_is_recovered():
+    """Two bodies, one pin joint; the target torque comes from a known route: the optimiser finds it."""
+    model = pamkin.load_osim(DATA / "two_body.osim")
+    origin = PathPoint("o", "base", (0.03, -0.05, 0.0))
+    true_insertion = (0.025, -0.12, 0.0)
+    route = (origin, PathPoint("i", "arm", true_insertion))
+    rom = RangeOfMotion({"angle": (-0.6, 0.6)})
+    q_check, _ = model.grid(["angle"], 41, rom=rom)
+    L = PamRobot(Design("t", (Pam(1, "t", (), "angle", (), 10, 1, 0.3, 0.0, route),)), model,
+                 sides=("r",)).evaluate(q_check).lengths[:, 0]
+    rest = 0.25
+    tendon = L.max() - 2 * 0.0125 - rest                     # at rest at the longest path
+    truth = Pam(1, "test", (), "angle", (), 10, 1, rest, tendon, route)
+    truth_robot = PamRobot(Design("truth", (truth,)), model, sides=("r",))
+    eps = truth_robot.evaluate(q_check).strain[:, 0]
+    assert eps.min() > -0.02 and eps.max() < 0.14          # the truth satisfies the strain limits
+
+    def target(q):
+        return truth_robot.evaluate(q).torques[:, 0, :]
+
+    seed = Pam(1, "test", (), "angle", (), 10, 1, rest, tendon, (origin, PathPoint("i", "arm", (0.04, -0.10, 0.0))))
+    cfg = RunConfig(regularization=0.0, fix_lengths=True, bone_clearance=False, n_primary=31,
+                    min_point_distance_m=0.0, regions={"1.o": [0.0, 0.0, 0.0], "1.i": [0.03, 0.03, 0.0]})
+    data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
+    seed_points = [np.array(p.location) for p in seed.points]
+    regions = [np.array(cfg.region(1, p.name)) for p in seed.points]
+    prob = ActuatorProblem(data, cfg, 10, seed_points, regions)
+    sol = prob.solve(prob.initial_guess(seed_points, seed.resting_length_m, seed.tendon_length_m), 1)
+    assert sol.success, sol.status
+    err = np.abs(sol.points[1] - np.array(true_insertion)).max()
+    print(f"recovered insertion {sol.points[1]}, error {err:.2e} m")
+    assert err <= 1e-4
+
+
+@pytest.fixture(scope="module")
+def semimem_problem():
+    human = pamkin.gait2392()
+    robot = thesis_robot()
+    pam = robot.design.pam(5)
+    cfg = RunConfig()
+    data = actuator_data(pam, human, load_rom("robot_thesis", "r"), cfg, robot.design.fitting_length_m)
+    seed = [np.array(p.location) for p in pam.points]
+    regions = [np.array(cfg.region(5, p.name)) for p in pam.points]
+    return pam, data, ActuatorProblem(data, cfg, 40, seed, regions), seed
+
+
+def test_casadi_torque_equals_numpy_pipeline(semimem_problem):
+    pam, data, prob, seed = semimem_problem
+    rng = np.random.default_rng(0)
+    points = [p + rng.uniform(-0.02, 0.02, 3) for p in seed]
+    z = prob.initial_guess(points, 0.5, 0.3)
+    sol = prob._solution(z, 0.0, "check", True, 0.0, 2)
+    design = Pam(pam.id, pam.name, pam.human_muscles, pam.primary_coordinate, pam.secondary_coordinates, 40, 2,
+                 float(z[-2]), float(z[-1]), tuple(PathPoint(p.name, p.body, tuple(loc))
+                                                   for p, loc in zip(pam.points, sol.points)))
+    robot = PamRobot(Design("check", (design,)), thesis_robot().model, sides=("r",))
+    worst = 0.0
+    for c, rows, _, _, label in data.objective:
+        tn = robot.evaluate(data.q[rows]).torques[:, 0, robot.coordinates.index(c)]
+        worst = max(worst, np.abs(tn - sol.torque_samples[label]).max())
+    print(f"max |CasADi - numpy| torque {worst:.2e} N·m")
+    assert worst <= 1e-9
+
+
+def test_infeasible_run_is_reported_and_writes_nothing(tmp_path):
+    before = _digest(ROBOT_DESIGN)
+    cfg = RunConfig(actuators=[12], workers=1, multistart=0, diameters_mm=[40], max_parallel=1,
+                    kmax_scale=0.01, pretension_scale=0.0, max_iter=200)   # no strain can satisfy both
+    with pytest.raises(InfeasibleError, match=r"actuator 12 Soleus.*contraction <= kmax"):
+        run(cfg, tmp_path / "run", apply=True)
+    assert _digest(ROBOT_DESIGN) == before
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["applied"] is False and summary["actuators"][0]["solved"] is False
+
+
+def test_apply_and_warm_start(tmp_path, monkeypatch):
+    design_copy = tmp_path / "pam_biped.yaml"
+    urdf_copy = tmp_path / "pam_biped.urdf"
+    design_copy.write_bytes(ROBOT_DESIGN.read_bytes())
+    monkeypatch.setattr(run_mod, "ROBOT_DESIGN", design_copy)
+    monkeypatch.setattr(run_mod, "ROBOT_URDF", urdf_copy)
+    cfg = RunConfig(actuators=[26], workers=1, multistart=0, diameters_mm=[20], max_parallel=1)
+    s1 = run(cfg, tmp_path / "run1", apply=True)
+    a1 = s1["actuators"][0]
+    assert s1["applied"] and a1["nrmse_after"] < a1["nrmse_before"]
+    applied = load_design(design_copy)
+    new = applied.pam(26)
+    run_design = load_design(tmp_path / "run1" / "design.yaml")
+    assert new == run_design.pam(26)
+    # the regenerated URDF carries the new attachment point as a frame
+    import pinocchio as pin
+
+    model = pin.buildModelFromUrdf(str(urdf_copy))
+    fid = model.getFrameId("pam26_r_point1")
+    assert np.allclose(model.frames[fid].placement.translation - model.frames[model.getFrameId("pelvis")].placement.translation,
+                       new.points[0].location, atol=1e-12)
+    # warm start from that run: the objective cannot get worse
+    cfg2 = RunConfig(actuators=[26], workers=1, multistart=0, diameters_mm=[20], max_parallel=1,
+                     warm_start=str(tmp_path / "run1"))
+    s2 = run(cfg2, tmp_path / "run2")
+    assert s2["actuators"][0]["nrmse_after"] <= a1["nrmse_after"] + 1e-3
+    for f in ("design.yaml", "summary.json", "log.txt", "before_after.png"):
+        assert (tmp_path / "run2" / f).stat().st_size > 0
+
+
+@pytest.mark.parametrize("text,match", [
+    ("workers = 2\nbogus = 1\n", "unknown key 'bogus'"),
+    ("[samples]\nprimary = 1\n", "primary must be >= 2"),
+    ("diameters_mm = [12]\n", "diameters_mm"),
+    ("[regions]\n\"6.p2\" = -0.1\n", "regions.6.p2"),
+    ("workers = \n", "not valid TOML"),
+])
+def test_bad_config(tmp_path, text, match):
+    f = tmp_path / "run.toml"
+    f.write_text(text)
+    with pytest.raises(DataFileError, match=match):
+        load_config(f)
+
+
+def test_config_regions(tmp_path):
+    f = tmp_path / "run.toml"
+    f.write_text('actuators = [4, 5]\n[limits]\nregion_m = 0.02\n[regions]\n"5" = 0.04\n"5.p2" = [0.01, 0.02, 0.0]\n')
+    cfg = load_config(f)
+    assert cfg.actuators == [4, 5]
+    assert cfg.region(4, "p1") == [0.02] * 3
+    assert cfg.region(5, "p1") == [0.04] * 3
+    assert cfg.region(5, "p2") == [0.01, 0.02, 0.0]
+
+
+@pytest.mark.slow
+def test_default_run_meets_the_goals(tmp_path):
+    """The main job on the built-in data (the timing goal is checked by benchmarks/bench_optimize.py)."""
+    s = run(RunConfig(), tmp_path / "run")
+    rows = s["actuators"]
+    assert len(rows) == 27
+    assert all(r["buildable"] and r["dead_zone_fraction"] == 0 for r in rows)
+    assert all(r["min_bone_clearance_m"] >= 0 for r in rows)
+    assert sum(r["nrmse_after"] <= 0.20 for r in rows) >= 22
+    assert max(r["casadi_numpy_max_torque_diff_Nm"] for r in rows) <= 1e-9
+    assert s["median_nrmse_after"] < 0.5 * s["median_nrmse_before"]
