@@ -93,13 +93,18 @@ def test_casadi_torque_equals_numpy_pipeline(semimem_problem):
     assert worst <= 1e-9
 
 
-def test_infeasible_run_is_reported_and_writes_nothing(tmp_path):
-    before = _digest(ROBOT_DESIGN)
+def test_infeasible_run_is_reported_and_writes_nothing(tmp_path, monkeypatch):
+    design_copy = tmp_path / "pam_biped.yaml"      # never let a test touch the real robot data
+    design_copy.write_bytes(ROBOT_DESIGN.read_bytes())
+    monkeypatch.setattr(run_mod, "ROBOT_DESIGN", design_copy)
+    monkeypatch.setattr(run_mod, "ROBOT_URDF", tmp_path / "pam_biped.urdf")
+    before = _digest(design_copy)
     cfg = RunConfig(actuators=[12], workers=1, multistart=0, diameters_mm=[40], max_parallel=1,
                     kmax_scale=0.01, pretension_scale=0.0, max_iter=200)   # no strain can satisfy both
     with pytest.raises(InfeasibleError, match=r"actuator 12 Soleus.*contraction <= kmax"):
         run(cfg, tmp_path / "run", apply=True)
-    assert _digest(ROBOT_DESIGN) == before
+    assert _digest(design_copy) == before
+    assert not (tmp_path / "pam_biped.urdf").exists()
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["applied"] is False and summary["actuators"][0]["solved"] is False
 
