@@ -32,6 +32,7 @@ Example (every key optional; these are the defaults)::
     kmax_scale = 1.0             # contraction limit = kmax_scale * kmax(l0)
     pretension_scale = 1.0       # stretch limit = pretension_scale * Festo's limit
     fix_lengths = false          # keep the seed resting and tendon lengths (move attachment points only)
+    move_moving_points = true    # offset points that move with a coordinate (the patella) within the region
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
 """
@@ -50,7 +51,8 @@ _SECTIONS = {
                 "regularization": "regularization"},
     "limits": {"region_m": "region_m", "min_point_distance_m": "min_point_distance_m",
                "bone_clearance": "bone_clearance", "kmax_scale": "kmax_scale",
-               "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths"},
+               "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths",
+               "move_moving_points": "move_moving_points"},
 }
 
 
@@ -82,6 +84,7 @@ class RunConfig:
     kmax_scale: float = 1.0
     pretension_scale: float = 1.0
     fix_lengths: bool = False
+    move_moving_points: bool = True
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     source: str = ""
 

@@ -69,7 +69,10 @@ class ActuatorProblem:
         self.npar = ca.SX.sym("n_parallel")      # a parameter: one solver serves 1..3 parallel PAMs
         self._solver = None
         pts = data.pam.points
-        self.free = [i for i, pt in enumerate(pts) if is_free(pt)]
+        # every route point has 3 decision variables: a body-fixed point its location, a point moving
+        # with a coordinate (e.g. the patella) a constant offset of its path in its body
+        self.free = list(range(len(pts)))
+        self.moving = {i for i, pt in enumerate(pts) if not is_free(pt)}
         self.seed = [np.asarray(seed_points[i], float) for i in range(len(pts))]
         self.regions = regions
         nz = 3 * len(self.free) + 2
@@ -80,16 +83,18 @@ class ActuatorProblem:
         S = data.q.shape[0]
         # world positions (3, S) of every route point
         X = []
+        self.offset = {}
         for i, pt in enumerate(pts):
-            if i in loc:
-                b = data.body_of_point[i]
-                R = data.R[:, b]                                  # (S, 3, 3)
-                x = _dm(data.p[:, b].T)
-                for j in range(3):
-                    x = x + _dm(R[:, :, j].T) * loc[i][j]
-                X.append(x)
+            b = data.body_of_point[i]
+            R = data.R[:, b]                                      # (S, 3, 3)
+            rot = 0
+            for j in range(3):
+                rot = rot + _dm(R[:, :, j].T) * loc[i][j]         # R_b · (location or offset)
+            if i in self.moving:
+                self.offset[i] = rot
+                X.append(_dm(data.moving_x[i].T) + rot)
             else:
-                X.append(_dm(data.moving_x[i].T))
+                X.append(_dm(data.p[:, b].T) + rot)
         self.X = X
         self.L = path_length(X, xp=ca)                            # (1, S)
         pam_len = self.L - 2 * data.fitting_length - self.t
@@ -102,11 +107,12 @@ class ActuatorProblem:
         for c, rows, th, w, label in data.objective:
             V = []
             for i, x in enumerate(X):
-                if i in loc:
-                    b = data.body_of_point[i]
-                    V.append(point_velocity(_dm(data.omega[c][:, b].T), _dm(data.tau[c][:, b].T), x, xp=ca))
+                b = data.body_of_point[i]
+                if i in self.moving:   # the offset moves with the body: add ω × (R_b δ)
+                    V.append(_dm(data.moving_v[i][c].T)
+                             + point_velocity(_dm(data.omega[c][:, b].T), 0, self.offset[i], xp=ca))
                 else:
-                    V.append(_dm(data.moving_v[i][c].T))
+                    V.append(point_velocity(_dm(data.omega[c][:, b].T), _dm(data.tau[c][:, b].T), x, xp=ca))
             r = path_moment_arm(X, V, xp=ca)
             tau_r = self.force * r
             cols = list(map(int, rows))
@@ -132,7 +138,8 @@ class ActuatorProblem:
         fam += ["stretch <= Festo pretension limit"] * len(ci)
         if cfg.min_point_distance_m > 0:
             for a, b in zip(range(len(X) - 1), range(1, len(X))):
-                same = (a in loc and b in loc and data.body_of_point[a] == data.body_of_point[b])
+                same = (a not in self.moving and b not in self.moving
+                        and data.body_of_point[a] == data.body_of_point[b])
                 cols = ci[:1] if same else ci        # within one body the distance is constant
                 dv = X[b][:, cols] - X[a][:, cols]
                 g.append(ca.sum1(dv * dv).T)
@@ -143,17 +150,15 @@ class ActuatorProblem:
         # bone clearance on a subset of the constraint samples; pairs (segment point, capsule) that
         # cannot come closer than required whatever the points do within their boxes are skipped
         cc = [int(s_) for s_ in data.clearance_idx]
-        reach = [float(np.linalg.norm(regions[i])) if i in loc else 0.0 for i in range(len(X))]
-        seedX = [np.array(ca.Function("x", [self.z], [x])(np.zeros(nz))) if i not in loc else None
-                 for i, x in enumerate(X)]
+        reach = [float(np.linalg.norm(regions[i])) for i in range(len(X))]
         for cap, wa, wb in data.capsules:
             A, B = _dm(wa[cc].T), _dm(wb[cc].T)
             AB = B - A
             ab2 = ca.sum1(AB * AB)
             need = cap.radius + radius + CLEARANCE_MARGIN
             for a in range(len(X) - 1):
-                xa = self._seed_world(a, seedX[a])
-                xb = self._seed_world(a + 1, seedX[a + 1])
+                xa = self._seed_world(a)
+                xb = self._seed_world(a + 1)
                 for tpar in CLEARANCE_T:
                     P0 = (1 - tpar) * xa + tpar * xb                       # (S, 3) seed positions
                     d0 = _point_segment_distance(P0[cc], wa[cc], wb[cc])
@@ -184,12 +189,11 @@ class ActuatorProblem:
             ubx += [lmax, 5.0]
         self.lbx, self.ubx = np.array(lbx), np.array(ubx)
 
-    def _seed_world(self, i: int, fixed: np.ndarray | None) -> np.ndarray:
-        """(S, 3) world positions of route point ``i`` at its seed location."""
-        if fixed is not None:
-            return np.asarray(fixed).T
+    def _seed_world(self, i: int) -> np.ndarray:
+        """(S, 3) world positions of route point ``i`` at its seed location (or offset)."""
         b = self.data.body_of_point[i]
-        return self.data.p[:, b] + self.data.R[:, b] @ self.seed[i]
+        base = self.data.moving_x[i] if i in self.moving else self.data.p[:, b]
+        return base + self.data.R[:, b] @ self.seed[i]
 
     def initial_guess(self, points: list[np.ndarray], rest: float | None, tendon: float | None) -> np.ndarray:
         """Start vector: given points; l0 and t from the seed or sized so ε spans [0, 0.8·kmax]."""

@@ -61,8 +61,10 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     data = _STATE["data"][k]
     pam: Pam = data.pam
     t0 = time.perf_counter()
+    # decision variables: locations of body-fixed points, offsets (seed 0) of moving points
     seed = [np.array(getattr(p, "location", (0.0, 0.0, 0.0)), float) for p in pam.points]
-    regions = [np.array(cfg.region(pam.id, p.name), float) for p in pam.points]
+    regions = [np.array(cfg.region(pam.id, p.name), float) if is_free(p) or cfg.move_moving_points
+               else np.zeros(3) for p in pam.points]
     attempts, best = [], None
     problems: dict[int, ActuatorProblem] = {}
     best_problem: list = [None]
@@ -99,8 +101,7 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     if best is not None and best.success and best.objective > cfg.multistart_threshold:
         rng = np.random.default_rng(cfg.seed + 1000 * pam.id + seed_index)
         for m in range(cfg.multistart):
-            pts = [p + rng.uniform(-0.5, 0.5, 3) * r if is_free(pt) else p
-                   for p, r, pt in zip(best.points, regions, pam.points)]
+            pts = [p + rng.uniform(-0.5, 0.5, 3) * r for p, r in zip(best.points, regions)]
             attempt(best.diameter_mm, best.n_parallel, pts, None, None, f"perturbed {m + 1}")
     assert best is not None
     best = best_problem[0].finalize(best)
@@ -109,7 +110,7 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         if is_free(pt):
             new_points.append(type(pt)(pt.name, pt.body, tuple(float(v) for v in loc)))
         else:
-            new_points.append(pt)
+            new_points.append(shift_moving_point(pt, loc))
     tendon = best.tendon_length
     new = Pam(pam.id, pam.name, pam.human_muscles, pam.primary_coordinate, pam.secondary_coordinates,
               best.diameter_mm, best.n_parallel, best.rest_length, tendon, tuple(new_points),
@@ -117,6 +118,33 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     sample_q = {label: data.q[rows] for _, rows, _, _, label in data.objective}
     return ActuatorResult(pam.id, pam.name, new, best.status, best.success, attempts, best.nrmse_samples,
                           best.torque_samples, sample_q, best.violations, time.perf_counter() - t0)
+
+
+def shift_function(fn, delta: float):
+    """``fn`` + delta, in the same function class (exactly)."""
+    from pamkin.functions import Constant, LinearFunction, MultiplierFunction, PolynomialFunction, SimmSpline
+
+    if delta == 0.0:
+        return fn
+    if isinstance(fn, Constant):
+        return Constant(fn.c + delta)
+    if isinstance(fn, LinearFunction):
+        return LinearFunction(fn.slope, fn.intercept + delta)
+    if isinstance(fn, SimmSpline):
+        return SimmSpline(fn.x, tuple(y + delta for y in fn.y))
+    if isinstance(fn, PolynomialFunction):
+        return PolynomialFunction(fn.coefficients[:-1] + (fn.coefficients[-1] + delta,))
+    if isinstance(fn, MultiplierFunction) and fn.scale != 0:
+        return MultiplierFunction(shift_function(fn.function, delta / fn.scale), fn.scale)
+    raise TypeError(f"cannot shift {fn!r}")
+
+
+def shift_moving_point(pt, offset):
+    """A moving point whose path is translated by ``offset`` (3,) [m] in its body frame."""
+    from pamkin.osim import MovingPathPoint
+
+    fns = tuple(shift_function(f, float(d)) for f, d in zip(pt.functions, offset))
+    return MovingPathPoint(pt.name, pt.body, fns, pt.coordinates)
 
 
 def _progress(done: int, total: int, r: ActuatorResult, stream) -> None:

@@ -1,0 +1,46 @@
+"""Benchmark: the default attachment-point optimisation of all 27 actuators on the built-in data.
+
+Goal (issue 6): finishes in under 5 minutes on this 2-core machine. Prints wall time, the solve
+time, and the before/after summary (from the run's summary.json).
+
+Usage: python benchmarks/bench_optimize.py [--config run.toml] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+GOAL_SECONDS = 300.0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--config", help="TOML run description (default: defaults)")
+    ap.add_argument("--out", help="run folder (default: a temporary folder)")
+    args = ap.parse_args()
+    from optimize.config import load_config
+    from optimize.run import run
+
+    cfg = load_config(args.config)
+    out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="pamkin-bench-"))
+    t = time.perf_counter()
+    s = run(cfg, out)
+    wall = time.perf_counter() - t
+    rows = s["actuators"]
+    print(f"default optimisation of {len(rows)} actuators, {cfg.workers} workers: {wall:.1f} s wall "
+          f"(goal < {GOAL_SECONDS:.0f} s: {'met' if wall < GOAL_SECONDS else 'NOT met'}); solves {s['solve_seconds']} s")
+    print(f"median NRMSE {s['median_nrmse_before']:.3f} -> {s['median_nrmse_after']:.3f}; "
+          f"{s['n_within_0.20_after']}/{len(rows)} within 0.20; {s['n_halved']} halved; "
+          f"all buildable {s['all_buildable']}; all clear of bone {s['all_clear_bone']}; run folder {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
