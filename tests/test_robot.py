@@ -197,3 +197,12 @@ def test_mirror_point_keeps_conditions():
     m = mirror_point(p)
     assert isinstance(m, ConditionalPathPoint)
     assert (m.body, m.location, m.coordinate, m.range) == ("tibia_l", (0.01, -0.02, -0.03), "knee_angle_l", (-1.0, 0.1))
+
+
+@pytest.mark.needs_shared
+def test_bone_capsules_are_not_stale():
+    if not (ROOT.parent / "shared" / "opensim-models" / "Geometry").exists():
+        pytest.skip("../shared/opensim-models/Geometry not found")
+    proc = subprocess.run([sys.executable, str(ROOT / "tools" / "fit_bone_capsules.py"), "--check"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout + proc.stderr

@@ -13,7 +13,6 @@ numbers are.
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 from pathlib import Path
 
@@ -21,6 +20,7 @@ import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
 OUT = ROOT / "robot" / "data" / "bone_capsules.yaml"
 BONES = {"femur_shaft": ("femur_r", "femur_r.vtp"), "tibia_shaft": ("tibia_r", "tibia_r.vtp"),
          "fibula_shaft": ("tibia_r", "fibula.vtp")}
@@ -29,12 +29,10 @@ PERCENTILE = 90
 
 
 def vtp_points(path: Path) -> np.ndarray:
-    """Vertices of an ASCII VTK PolyData file."""
-    text = path.read_text()
-    m = re.search(r"<Points>\s*<DataArray[^>]*format=\"ascii\"[^>]*>(.*?)</DataArray>", text, re.S)
-    if not m:
-        raise SystemExit(f"{path}: no ASCII <Points> array")
-    return np.array(m.group(1).split(), dtype=float).reshape(-1, 3)
+    """Vertices of an OpenSim .vtp mesh (pamkin's reader)."""
+    from pamkin.vtp import read_vtp
+
+    return np.asarray(read_vtp(path).vertices, dtype=float)
 
 
 def fit(points: np.ndarray) -> dict:
