@@ -145,6 +145,20 @@ class Model:
         eq = equilibrium(res.lengths, params, activation, rigid_tendon=rigid_tendon)
         return MuscleState(res, eq.tendon_force, eq)
 
+    def evaluate_chunks(self, q: ConfigLike, chunk: int = 50_000, activation: float | np.ndarray = 1.0,
+                        rigid_tendon: bool = False):
+        """Evaluate a large batch chunk by chunk (bounded memory, e.g. 10^6 configurations).
+
+        Yields:
+            (slice of the configurations, :class:`MuscleState` of that chunk).
+        """
+        q = self.kinematics.as_q(q)
+        if chunk < 1:
+            raise ValueError("chunk must be >= 1")
+        for start in range(0, len(q), chunk):
+            sl = slice(start, min(start + chunk, len(q)))
+            yield sl, self.evaluate(q[sl], activation, rigid_tendon)
+
     def tendon_forces(self, q: ConfigLike, activation: float | np.ndarray = 1.0,
                       rigid_tendon: bool = False) -> np.ndarray:
         """Static (zero fibre velocity) tendon forces (N, n_muscles) [N], OpenSim's equilibrium."""

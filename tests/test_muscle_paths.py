@@ -191,3 +191,12 @@ def test_out_of_range_configuration_is_flagged(gait2392):
     q[gait2392.coordinates.index("hip_flexion_r")] = 3.0
     with pytest.warns(RangeWarning, match="hip_flexion_r"):
         gait2392.lengths(q)
+
+
+def test_chunked_evaluation_equals_one_batch(gait2392):
+    q = gait2392.random_q(250, seed=37)
+    whole = gait2392.evaluate(q)
+    parts = list(gait2392.evaluate_chunks(q, chunk=64))
+    assert [sl.start for sl, _ in parts] == [0, 64, 128, 192]
+    assert np.array_equal(np.vstack([st.tendon_forces for _, st in parts]), whole.tendon_forces)
+    assert np.array_equal(np.vstack([st.pair_torques for _, st in parts]), whole.pair_torques)
