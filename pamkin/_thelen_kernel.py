@@ -7,9 +7,13 @@ OpenSim's own Newton search, the safeguarded root search, the clamping rules, an
 parallel over chunks of configurations. :mod:`pamkin.thelen2003` documents the model and
 holds the public API; read its module docstring first.
 
-Every function here works on Python floats; they are compiled with
-``error_model="numpy"`` so that 0/0 gives NaN as in OpenSim (the replayed search relies
-on it) instead of raising.
+The math works on scalars (one muscle in one configuration; ``t`` is the muscle's row of
+:func:`muscle_table`). Everything is compiled with ``error_model="numpy"`` so that 0/0
+gives NaN as in OpenSim (the replayed search relies on it) instead of raising. Both
+Newton iterations are written as state machines advanced one function evaluation at a
+time, so that the kernel can interleave two independent entries per thread: a single
+iteration is a chain of dependent operations (latency bound), and interleaving lets the
+processor overlap two chains.
 """
 
 from __future__ import annotations
@@ -66,6 +70,17 @@ def tendon_curve(lt_n, e_toe, k_lin, c_toe):
         ex = math.exp(c_toe * e)
         return TOE_SCALE * (ex - 1.0), TOE_SCALE * c_toe * ex
     return 0.0, 0.0
+
+
+@njit(**_JIT)
+def tendon_strain(f, e_toe, k_lin, c_toe):
+    """Inverse of :func:`tendon_curve`: the tendon strain ``lT/lTs − 1`` at which fT = ``f``
+    (0 for ``f`` <= 0)."""
+    if f >= F_TOE:
+        return e_toe + (f - F_TOE) / k_lin
+    if f > 0.0:
+        return math.log1p(f / TOE_SCALE) / c_toe
+    return 0.0
 
 
 @njit(**_JIT)
@@ -218,19 +233,25 @@ def tendon_side(x, lmt, t):
 
 
 @njit(**_JIT)
+def fiber_force_along_tendon(a, fl, fpe, cos):
+    """Fibre force along the tendon over Fmax, at zero velocity: ``(a·fL + fPE)·cos(alpha)``."""
+    return (a * fl + fpe) * cos
+
+
+@njit(inline="always", **_JIT)
 def residual(x, lmt, a, t):
     """Normalized force error g (fibre along tendon − tendon, over Fmax) and dg/dx at fibre
     length along the tendon ``x``, with the parts the outputs need (lM, fL, fPE, fT)."""
     lm, cos, fl, dfl, fpe, dfpe = fiber_side(x, t)
     ft, dft = tendon_side(x, lmt, t)
     fm = a * fl + fpe
-    g = fm * cos - ft
+    g = fiber_force_along_tendon(a, fl, fpe, cos) - ft
     curv = t[C_H2] / (lm * lm * lm) if t[C_H] > 0.0 else 0.0  # d(cos)/dx
     dg = (a * dfl + dfpe) * t[C_INV_L0] * cos * cos + fm * curv + dft * t[C_INV_LTS]
     return g, dg, lm, fl, fpe, ft
 
 
-@njit(**_JIT)
+@njit(inline="always", **_JIT)
 def opensim_force_error(lce, lmt, a, t):
     """OpenSim's positionFunc + multipliersFunc + ferrFunc (fv = 1) and partialsFunc: force
     error [N] and its slope in fibre length (0/0 = NaN at lce = 0 for an unpennated muscle).
@@ -243,24 +264,27 @@ def opensim_force_error(lce, lmt, a, t):
     fmax = t[C_FMAX]
     if h > 0.0:
         ratio = h / lce
-        root = math.sqrt(1.0 - ratio * ratio)
         if lce > t[C_LMIN] and ratio < t[C_SIN_AMAX]:
-            cos = root
+            along = math.sqrt(lce * lce - t[C_H2])  # lce·cos(alpha)
+            cos = along / lce
+            root = cos
             sin = ratio
         else:
             cos = t[C_COS_AMAX]
+            along = lce * cos
+            root = math.sqrt(1.0 - ratio * ratio)
             sin = t[C_SIN_AMAX]
-        lr = lce * root
-        dcos = ratio * ratio / lr  # = h²/(lce³·sqrt(1 − h²/lce²))
+        dcos = ratio * ratio / (lce * root)  # = h²/(lce³·sqrt(1 − h²/lce²))
         dtl = -cos - sin * ratio / root  # d(tendon length)/d(lce)
     else:
         cos = 1.0
+        along = lce
         dcos = 0.0 / (lce * lce * lce)  # NaN at lce = 0, as in OpenSim
         dtl = -1.0 + dcos
     lm_n = lce * t[C_INV_L0]
     fl, dfl = active_curve(lm_n, t[C_INV_KACT])
     fpe, dfpe = passive_curve(lm_n, t[C_PE_RATE], t[C_PE_INV_DEN])
-    fse, dfse = tendon_curve((lmt - lce * cos) * t[C_INV_LTS], t[C_ETOE], t[C_KLIN], t[C_CTOE])
+    fse, dfse = tendon_curve((lmt - along) * t[C_INV_LTS], t[C_ETOE], t[C_KLIN], t[C_CTOE])
     fm = (a * fl + fpe) * fmax
     ferr = fm * cos - fse * fmax
     dfm_at = (a * dfl + dfpe) * fmax * t[C_INV_L0] * cos + fm * dcos
@@ -268,203 +292,358 @@ def opensim_force_error(lce, lmt, a, t):
     return ferr, dfm_at - dft
 
 
+# ----------------------------------------------------------------------------------------------
+# OpenSim's search, replayed one force evaluation at a time
+# ----------------------------------------------------------------------------------------------
+#
+# OpenSim (``Thelen2003Muscle::initMuscleState``) starts with the tendon at 1.01 × its slack
+# length, takes Newton steps on the fibre length, halves a step (down to sqrt(eps)) until
+# the force error drops, raises any iterate below the minimum fibre length to it, and
+# stops after 20 iterations or when the force error is below
+# ``max(1e-8·Fmax, 10·SignificantReal)``. It then reports *converged*, *at lower bound*
+# (not converged and the fibre at its minimum length: OpenSim clamps it there) or fails.
+#
+# The path matters where the fibre is extremely short: for an unpennated muscle the
+# minimum fibre length is 0, and once an iterate reaches 0 the Newton slope is 0/0, so
+# OpenSim stays at 0 and reports the fibre clamped even though an equilibrium exists just
+# above it. Replaying the search is the only way to reproduce that.
+#
+# The replay is written as a state machine (:func:`search_update` after each evaluation of
+# :func:`opensim_force_error`) so that the kernel can interleave independent entries.
+
+
 @njit(**_JIT)
-def opensim_search(lmt, a, t):
-    """Replay OpenSim 4.6's damped Newton search for the fibre length of one muscle.
+def search_start(lmt, t):
+    """OpenSim's starting fibre length: MuscleFixedWidthPennationModel::calcFiberLength(lMT,
+    1.01·lTs), raised to the minimum fibre length."""
+    x0 = lmt - 1.01 * t[C_LTS]
+    return fiber_length(x0, t[C_H]) if x0 >= t[C_XMIN] else t[C_LMIN]
 
-    OpenSim (``Thelen2003Muscle::initMuscleState``) starts with the tendon at 1.01 × its
-    slack length, takes Newton steps on the fibre length, halves a step (down to
-    sqrt(eps)) until the force error drops, raises any iterate below the minimum fibre
-    length to it, and stops after 20 iterations or when the force error is below
-    ``max(1e-8·Fmax, 10·SignificantReal)``. It then reports *converged*, *at lower bound*
-    (not converged and the fibre at its minimum length: OpenSim clamps it there) or fails.
 
-    The path matters where the fibre is extremely short: for an unpennated muscle the
-    minimum fibre length is 0, and once an iterate reaches 0 the Newton slope is 0/0, so
-    OpenSim stays at 0 and reports the fibre clamped even though an equilibrium exists a
-    few micrometres above it. Replaying the search is the only way to reproduce that.
+@njit(**_JIT)
+def search_trial(base_lce, base_err, base_slope, step, lmin):
+    """OpenSim's trial fibre length for a (fractional) Newton step ``step`` from the base
+    iterate; a step too small to matter is replaced by ``sqrt(eps)`` against the Newton
+    direction, and then ``step`` becomes 0 (no further halving). Returns (trial, step)."""
+    delta = -step * base_err / base_slope
+    if abs(delta) > SIGNIFICANT_REAL:
+        trial = base_lce + delta
+    else:
+        sgn = 0.0  # NaN or 0
+        if delta > 0.0:
+            sgn = 1.0
+        elif delta < 0.0:
+            sgn = -1.0
+        trial = base_lce - sgn * SQRT_EPS
+        step = 0.0
+    if trial < lmin:
+        trial = lmin
+    return trial, step
+
+
+@njit(inline="always", **_JIT)
+def search_update(lce, ferr, slope, base_lce, base_err, base_slope, step, n_iter, t):
+    """Advance OpenSim's search after evaluating the force error ``ferr`` (and its slope) at
+    the fibre length ``lce``.
+
+    ``step`` < 0 marks the evaluation at the starting guess; otherwise ``lce`` was a trial
+    of Newton iteration ``n_iter`` from the base iterate with that step fraction.
 
     Returns:
-        (status, fibre length, force error, its slope) at the last iterate; status is one of
-        CONVERGED, AT_LOWER_BOUND, FAILED.
+        (base_lce, base_err, base_slope, step, n_iter, next fibre length to evaluate, done).
+        When done, the search's answer is (lce, ferr, slope).
     """
-    lmin = t[C_LMIN]
-    tol = t[C_TOL]
-    # Starting guess: MuscleFixedWidthPennationModel::calcFiberLength(lMT, 1.01·lTs).
-    x0 = lmt - 1.01 * t[C_LTS]
-    lce = fiber_length(x0, t[C_H]) if x0 >= t[C_XMIN] else lmin
-    ferr, slope = opensim_force_error(lce, lmt, a, t)
-    for _ in range(OPENSIM_MAX_ITERATIONS):
-        if not abs(ferr) > tol:  # NaN compares False: OpenSim stops too
-            break
-        prev_err = ferr
-        prev_lce = lce
-        d = slope
-        step = 1.0
-        while True:
-            delta = -step * prev_err / d
-            if abs(delta) > SIGNIFICANT_REAL:
-                trial = prev_lce + delta
-            else:
-                sgn = 0.0  # NaN or 0
-                if delta > 0.0:
-                    sgn = 1.0
-                elif delta < 0.0:
-                    sgn = -1.0
-                trial = prev_lce - sgn * SQRT_EPS
-                step = 0.0
-            if trial < lmin:
-                trial = lmin
-            ferr, slope = opensim_force_error(trial, lmt, a, t)
-            lce = trial
-            stop = step <= SQRT_EPS or not abs(ferr) >= abs(prev_err)
-            step *= 0.5
-            if stop:
-                break
-        if lce == prev_lce:
-            break  # same state as before this iteration: every further one repeats it
-    if abs(ferr) < tol:
-        return CONVERGED, lce, ferr, slope
-    if lce <= lmin:
-        return AT_LOWER_BOUND, lce, ferr, slope
-    return FAILED, lce, ferr, slope
+    if step >= 0.0:
+        stop = step <= SQRT_EPS or not abs(ferr) >= abs(base_err)
+        step *= 0.5
+        if not stop:  # the error did not drop: halve the step
+            trial, step = search_trial(base_lce, base_err, base_slope, step, t[C_LMIN])
+            return base_lce, base_err, base_slope, step, n_iter, trial, False
+        if lce == base_lce:  # the same state as before: every further iteration repeats it
+            return base_lce, base_err, base_slope, step, n_iter, lce, True
+    # NaN compares False: OpenSim stops too
+    if not abs(ferr) > t[C_TOL] or n_iter == OPENSIM_MAX_ITERATIONS:
+        return base_lce, base_err, base_slope, step, n_iter, lce, True
+    trial, step = search_trial(lce, ferr, slope, 1.0, t[C_LMIN])
+    return lce, ferr, slope, step, n_iter + 1, trial, False
 
 
 @njit(**_JIT)
-def solve_fiber(lmt, a, t, search, max_iterations):
-    """Equilibrium of one muscle: (x, lM, fL, fPE, fT) with ``x`` the fibre length along the
-    tendon, or ``x`` = NaN where the fibre is clamped at its minimum length (no equilibrium
-    above it, or OpenSim's search ends there when ``search``; the other values are then
-    undefined).
+def search_status(lce, ferr, t):
+    """Outcome of OpenSim's search that ended at ``lce`` with force error ``ferr``."""
+    if abs(ferr) < t[C_TOL]:
+        return CONVERGED
+    if lce <= t[C_LMIN]:
+        return AT_LOWER_BOUND
+    return FAILED
 
-    The root of :func:`residual` in ``(x_min, lMT − lTs)`` by a bracketed, safeguarded Newton
-    iteration (as "rtsafe": bisect when the Newton step leaves the bracket or is not at least
-    half as long as the step before last, so the bracket shrinks at least as fast as
-    bisection's), started from OpenSim's converged answer when ``search``, else from
-    OpenSim's starting guess (tendon at 1.01 × slack length).
+
+# ----------------------------------------------------------------------------------------------
+# The equilibrium itself: safeguarded Newton iteration on x, the fibre length along the tendon
+# ----------------------------------------------------------------------------------------------
+
+
+@njit(**_JIT)
+def root_guess_from_search(lce, ferr, slope, t, lo, hi):
+    """Starting x from the converged OpenSim answer ``lce``, improved by one Newton step on its
+    force error where that stays inside the bracket ``(lo, hi)``."""
+    xi = math.sqrt(lce * lce - t[C_H2])
+    lce = lce - ferr / slope
+    x_newton = math.sqrt(lce * lce - t[C_H2])
+    if x_newton > lo and x_newton < hi:
+        return x_newton
+    return xi
+
+
+@njit(**_JIT)
+def root_guess(lmt, a, t):
+    """Starting x without OpenSim's search: the tendon stretched by the force the fibre would
+    have with the tendon at its slack length (one fixed-point step away from the
+    rigid-tendon solution)."""
+    _, cos, fl, _, fpe, _ = fiber_side(lmt - t[C_LTS], t)
+    e = tendon_strain(fiber_force_along_tendon(a, fl, fpe, cos), t[C_ETOE], t[C_KLIN], t[C_CTOE])
+    return lmt - t[C_LTS] * (1.0 + e)
+
+
+@njit(inline="always", **_JIT)
+def root_update(xi, g, dg, lo, hi, dx_old):
+    """One step of the bracketed, safeguarded Newton iteration (as "rtsafe") on the residual
+    ``g`` (slope ``dg``) at ``xi``: bisect when the Newton step leaves the bracket or is not at
+    least half as long as the step before last, so the bracket shrinks at least as fast as
+    bisection's. Done (``xi`` unchanged) once |g| <= 1e-13 or the bracket is exhausted.
+
+    Returns:
+        (next x, lo, hi, dx_old, done).
     """
-    xmin = t[C_XMIN]
-    lo = xmin
-    hi = lmt - t[C_LTS]  # fibre along tendon that leaves the tendon exactly slack
-    if not hi > xmin:
-        return np.nan, 0.0, 0.0, 0.0, 0.0  # slack tendon
-    # residual(x_min): even the shortest fibre pulls at least as hard as the tendon?
-    g_lo = ((a * t[C_FL_XMIN] + t[C_FPE_XMIN]) * t[C_COS_XMIN]
-            - tendon_side(xmin, lmt, t)[0])
-    if not g_lo < 0.0:
-        return np.nan, 0.0, 0.0, 0.0, 0.0
-    xi = lmt - 1.01 * t[C_LTS]
-    if search:
-        status, lce, ferr, slope = opensim_search(lmt, a, t)
-        if status == AT_LOWER_BOUND:
-            return np.nan, 0.0, 0.0, 0.0, 0.0
-        if status == CONVERGED:
-            xi = math.sqrt(lce * lce - t[C_H2])
-            # one more Newton step on OpenSim's last iterate, if it stays in the bracket
-            lce = lce - ferr / slope
-            x_newton = math.sqrt(lce * lce - t[C_H2])
-            if x_newton > lo and x_newton < hi:
-                xi = x_newton
+    if g < 0.0:
+        lo = xi
+    else:
+        hi = xi
+    if abs(g) <= 1e-13 or hi - lo <= 4.0 * EPS * abs(hi):
+        return xi, lo, hi, dx_old, True
+    dx = g / dg
+    newton = xi - dx
+    if newton > lo and newton < hi and math.isfinite(newton) and abs(2.0 * dx) <= dx_old:
+        return newton, lo, hi, abs(dx), False
+    return 0.5 * (lo + hi), lo, hi, 0.5 * (hi - lo), False
+
+
+# ----------------------------------------------------------------------------------------------
+# Kernel: each (configuration, muscle) entry is a small state machine; LANES entries are
+# advanced in turn, one function evaluation at a time, so that the processor overlaps their
+# (otherwise strictly sequential) Newton iterations.
+# ----------------------------------------------------------------------------------------------
+
+#: Configurations per parallel work item, and work items a thread takes at a time
+#: (``numba.set_parallel_chunksize``).
+CHUNK = 64
+CHUNKS_PER_GRAB = 4
+#: Entries interleaved per thread (2 is fastest: more only add branch mispredictions).
+LANES = 2
+
+# Phases of an entry.
+P_SEARCH, P_ROOT, P_SOLVED, P_CLAMPED, P_INVALID, P_IDLE = 0, 1, 2, 3, 4, 5
+# Lane scratch: float columns ...
+(F_LMT, F_A, F_LCE, F_BASE_LCE, F_BASE_ERR, F_BASE_SLOPE, F_STEP, F_X, F_LO, F_HI, F_DX_OLD,
+ F_LM, F_FL, F_FPE, F_FT, N_FLOAT) = range(16)
+# ... and integer columns.
+I_ROW, I_COL, I_PHASE, I_ITER, N_INT = range(5)
+# Rows of the float output array.
+(O_FIBER_LENGTH, O_NORMALIZED_FIBER_LENGTH, O_PENNATION_ANGLE, O_TENDON_LENGTH, O_TENDON_FORCE,
+ O_ACTIVE_FIBER_FORCE, O_PASSIVE_FIBER_FORCE, N_OUTPUTS) = range(8)
+
+
+@njit(inline="always", **_JIT)
+def begin_root(fs, q, t, xi):
+    """Enter the root phase from the guess ``xi`` (bracket: x_min .. lMT − lTs)."""
+    lo = t[C_XMIN]
+    hi = fs[q, F_LMT] - t[C_LTS]  # the tendon exactly slack
     if not (xi > lo and xi < hi):
         xi = 0.5 * (lo + hi)
-    dx_old = hi - lo
-    for _ in range(max_iterations):
-        g, dg, lm, fl, fpe, ft = residual(xi, lmt, a, t)
-        if g < 0.0:
-            lo = xi
-        else:
-            hi = xi
-        if abs(g) <= 1e-13:
-            return xi, lm, fl, fpe, ft
-        if hi - lo <= 4.0 * EPS * abs(hi):
-            break
-        dx = g / dg
-        newton = xi - dx
-        if newton > lo and newton < hi and math.isfinite(newton) and abs(2.0 * dx) <= dx_old:
-            dx_old = abs(dx)
-            xi = newton
-        else:
-            dx_old = 0.5 * (hi - lo)
-            xi = 0.5 * (lo + hi)
-    # bracket exhausted, or not converged within max_iterations (not expected)
-    _, _, lm, fl, fpe, ft = residual(xi, lmt, a, t)
-    return xi, lm, fl, fpe, ft
+    fs[q, F_X] = xi
+    fs[q, F_LO] = lo
+    fs[q, F_HI] = hi
+    fs[q, F_DX_OLD] = hi - lo
 
 
-# ----------------------------------------------------------------------------------------------
-# Kernel
-# ----------------------------------------------------------------------------------------------
+@njit(inline="always", **_JIT)
+def load_entry(fs, ist, q, i, j, lmt, act, table, rigid, search):
+    """Put entry (i, j) into lane ``q``: decide what needs no iteration (invalid input, rigid
+    tendon, slack tendon, no equilibrium above the minimum fibre length) and otherwise start
+    OpenSim's search or the root phase."""
+    t = table[j]
+    length = lmt[i, j]
+    a = act[i if act.shape[0] > 1 else 0, j if act.shape[1] > 1 else 0]
+    a = min(max(a, t[C_AMIN]), 1.0)
+    ist[q, I_ROW] = i
+    ist[q, I_COL] = j
+    ist[q, I_ITER] = 0
+    fs[q, F_LMT] = length
+    fs[q, F_A] = a
+    if not math.isfinite(length):
+        ist[q, I_PHASE] = P_INVALID
+        return
+    x_slack = length - t[C_LTS]  # fibre along tendon that leaves the tendon exactly slack
+    if not x_slack > t[C_XMIN]:
+        ist[q, I_PHASE] = P_CLAMPED  # slack tendon
+        return
+    if rigid:
+        lm, cos, fl, _, fpe, _ = fiber_side(x_slack, t)
+        fs[q, F_X] = x_slack
+        fs[q, F_LM] = lm
+        fs[q, F_FL] = fl
+        fs[q, F_FPE] = fpe
+        fs[q, F_FT] = fiber_force_along_tendon(a, fl, fpe, cos)
+        ist[q, I_PHASE] = P_SOLVED
+        return
+    # residual(x_min) >= 0: even the shortest fibre pulls at least as hard as the tendon
+    g_lo = (fiber_force_along_tendon(a, t[C_FL_XMIN], t[C_FPE_XMIN], t[C_COS_XMIN])
+            - tendon_side(t[C_XMIN], length, t)[0])
+    if not g_lo < 0.0:
+        ist[q, I_PHASE] = P_CLAMPED
+        return
+    # OpenSim's search can end away from the equilibrium only by landing on a fibre length of 0,
+    # where its slope is 0/0: possible only for unpennated fibres (minimum length 0). A pennated
+    # fibre has a positive minimum length with a finite slope there, so OpenSim's search goes on to
+    # the same root, or is clamped where no root lies above the minimum (decided just above).
+    if search and not t[C_XMIN] > 0.0:
+        fs[q, F_LCE] = search_start(length, t)
+        fs[q, F_STEP] = -1.0
+        ist[q, I_PHASE] = P_SEARCH
+    else:
+        begin_root(fs, q, t, root_guess(length, a, t))
+        ist[q, I_PHASE] = P_ROOT
 
-#: Configurations per parallel work item.
-CHUNK = 64
+
+@njit(inline="always", **_JIT)
+def advance_entry(fs, ist, q, table, max_iterations):
+    """One function evaluation (and the decision that follows) for the entry in lane ``q``."""
+    t = table[ist[q, I_COL]]
+    length = fs[q, F_LMT]
+    a = fs[q, F_A]
+    if ist[q, I_PHASE] == P_SEARCH:
+        lce = fs[q, F_LCE]
+        ferr, slope = opensim_force_error(lce, length, a, t)
+        (fs[q, F_BASE_LCE], fs[q, F_BASE_ERR], fs[q, F_BASE_SLOPE], fs[q, F_STEP], ist[q, I_ITER],
+         trial, done) = search_update(lce, ferr, slope, fs[q, F_BASE_LCE], fs[q, F_BASE_ERR],
+                                      fs[q, F_BASE_SLOPE], fs[q, F_STEP], ist[q, I_ITER], t)
+        if not done:
+            fs[q, F_LCE] = trial
+            return
+        status = search_status(lce, ferr, t)
+        if status == AT_LOWER_BOUND:
+            ist[q, I_PHASE] = P_CLAMPED
+            return
+        if status == CONVERGED:
+            xi = root_guess_from_search(lce, ferr, slope, t, t[C_XMIN], length - t[C_LTS])
+        else:  # OpenSim would raise here: return the true equilibrium
+            xi = root_guess(length, a, t)
+        begin_root(fs, q, t, xi)
+        ist[q, I_ITER] = 0
+        ist[q, I_PHASE] = P_ROOT
+        return
+    xi = fs[q, F_X]
+    g, dg, lm, fl, fpe, ft = residual(xi, length, a, t)
+    x_next, fs[q, F_LO], fs[q, F_HI], fs[q, F_DX_OLD], done = root_update(
+        xi, g, dg, fs[q, F_LO], fs[q, F_HI], fs[q, F_DX_OLD])
+    ist[q, I_ITER] += 1
+    if not done:
+        fs[q, F_X] = x_next
+        if ist[q, I_ITER] < max_iterations:
+            return
+        # not converged within max_iterations (not expected): the last iterate
+        xi = x_next
+        _, _, lm, fl, fpe, ft = residual(xi, length, a, t)
+    fs[q, F_LM] = lm
+    fs[q, F_FL] = fl
+    fs[q, F_FPE] = fpe
+    fs[q, F_FT] = ft
+    ist[q, I_PHASE] = P_SOLVED
+
+
+@njit(inline="always", **_JIT)
+def store_entry(fs, ist, q, table, rigid, out_f, out_clamped):
+    """Write the finished entry of lane ``q`` into the outputs (see :func:`equilibrium_kernel`)."""
+    i = ist[q, I_ROW]
+    j = ist[q, I_COL]
+    t = table[j]
+    phase = ist[q, I_PHASE]
+    if phase == P_INVALID:
+        for r in range(out_f.shape[0]):
+            out_f[r, i, j] = np.nan
+        out_clamped[i, j] = False
+        return
+    length = fs[q, F_LMT]
+    clamped = phase == P_CLAMPED
+    out_clamped[i, j] = clamped
+    fmax = t[C_FMAX]
+    if clamped:
+        ft = 0.0 if rigid else tendon_side(t[C_XMIN], length, t)[0]
+    else:
+        ft = fs[q, F_FT]
+    out_f[O_TENDON_FORCE if out_f.shape[0] > 1 else 0, i, j] = fmax * ft
+    if out_f.shape[0] == 1:
+        return  # tendon force only
+    h = t[C_H]
+    if clamped:
+        lm = t[C_LMIN]
+        alpha = t[C_AMAX] if h > 0.0 else 0.0
+        lt = length - t[C_XMIN]
+        fl = 0.0  # OpenSim reports no active force
+        fpe = passive_curve(lm * t[C_INV_L0], t[C_PE_RATE], t[C_PE_INV_DEN])[0]
+    else:
+        x = fs[q, F_X]
+        lm = fs[q, F_LM]
+        fl = fs[q, F_FL]
+        fpe = fs[q, F_FPE]
+        alpha = math.atan2(h, x) if h > 0.0 else 0.0
+        lt = t[C_LTS] if rigid else length - x
+    out_f[O_FIBER_LENGTH, i, j] = lm
+    out_f[O_NORMALIZED_FIBER_LENGTH, i, j] = lm / t[C_L0]
+    out_f[O_PENNATION_ANGLE, i, j] = alpha
+    out_f[O_TENDON_LENGTH, i, j] = lt
+    out_f[O_ACTIVE_FIBER_FORCE, i, j] = fmax * fs[q, F_A] * fl
+    out_f[O_PASSIVE_FIBER_FORCE, i, j] = fmax * fpe
 
 
 @njit(parallel=True, **_JIT)
-def equilibrium_kernel(lmt, act, table, rigid, search, max_iterations,
-                       lm_out, lm_n_out, alpha_out, lt_out, ft_out, fa_out, fp_out, clamped_out):
+def equilibrium_kernel(lmt, act, table, rigid, search, max_iterations, out_f, out_clamped):
     """Equilibrium of every (configuration, muscle) pair, written into the output arrays.
 
     Args:
         lmt: (N, M) musculotendon lengths [m]; non-finite entries give NaN results.
-        act: (N, M) activation (clamped here to [minimum_activation, 1]); may be a
-            broadcast view.
+        act: (N or 1, M or 1) activation, broadcast over the lengths (clamped here to
+            [minimum_activation, 1]).
         table: (M, N_COLUMNS) from :func:`muscle_table`.
         rigid: Inextensible tendon.
         search: Replay OpenSim's search (compliant tendon only).
         max_iterations: Iteration limit of the root search.
-        lm_out, lm_n_out, alpha_out, lt_out, ft_out, fa_out, fp_out: (N, M) float outputs:
-            fibre length, normalized fibre length, pennation angle, tendon length, tendon
-            force, active and passive fibre force.
-        clamped_out: (N, M) bool output.
+        out_f: (N_OUTPUTS, N, M) float outputs, rows ``O_*``: fibre length, normalized fibre
+            length, pennation angle, tendon length, tendon force, active and passive fibre
+            force; or (1, N, M): the tendon force only.
+        out_clamped: (N, M) bool output: fibre clamped at its minimum length.
     """
     n, m = lmt.shape
     n_chunks = (n + CHUNK - 1) // CHUNK
     for c in prange(n_chunks):
-        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            for j in range(m):
-                t = table[j]
-                length = lmt[i, j]
-                if not math.isfinite(length):
-                    lm_out[i, j] = np.nan
-                    lm_n_out[i, j] = np.nan
-                    alpha_out[i, j] = np.nan
-                    lt_out[i, j] = np.nan
-                    ft_out[i, j] = np.nan
-                    fa_out[i, j] = np.nan
-                    fp_out[i, j] = np.nan
-                    clamped_out[i, j] = False
-                    continue
-                a = min(max(act[i, j], t[C_AMIN]), 1.0)
-                h = t[C_H]
-                fmax = t[C_FMAX]
-                if rigid:
-                    x = length - t[C_LTS]
-                    if x > t[C_XMIN]:
-                        lm, cos, fl, _, fpe, _ = fiber_side(x, t)
-                        ft = (a * fl + fpe) * cos
-                    else:
-                        x = np.nan
-                else:
-                    x, lm, fl, fpe, ft = solve_fiber(length, a, t, search, max_iterations)
-                clamped = math.isnan(x)
-                if clamped:
-                    lm = t[C_LMIN]
-                    alpha = t[C_AMAX] if h > 0.0 else 0.0
-                    lt = length - t[C_XMIN]
-                    fl = 0.0
-                    fpe = passive_curve(lm * t[C_INV_L0], t[C_PE_RATE], t[C_PE_INV_DEN])[0]
-                    if rigid:
-                        ft = 0.0
-                    else:
-                        ft = tendon_side(t[C_XMIN], length, t)[0]
-                else:
-                    alpha = math.atan2(h, x) if h > 0.0 else 0.0
-                    lt = t[C_LTS] if rigid else length - x
-                lm_out[i, j] = lm
-                lm_n_out[i, j] = lm / t[C_L0]
-                alpha_out[i, j] = alpha
-                lt_out[i, j] = lt
-                ft_out[i, j] = fmax * ft
-                fa_out[i, j] = fmax * a * fl
-                fp_out[i, j] = fmax * fpe
-                clamped_out[i, j] = clamped
+        fs = np.empty((LANES, N_FLOAT))
+        ist = np.empty((LANES, N_INT), dtype=np.int64)
+        ist[:, I_PHASE] = P_IDLE
+        e = c * CHUNK * m  # next entry (flat index i·m + j) of this chunk
+        e_end = min(n, (c + 1) * CHUNK) * m
+        busy = True
+        while busy:
+            busy = False
+            for q in range(LANES):
+                if ist[q, I_PHASE] <= P_ROOT:
+                    advance_entry(fs, ist, q, table, max_iterations)
+                # store a finished entry, then load entries until one needs iterating
+                while ist[q, I_PHASE] > P_ROOT:
+                    if ist[q, I_PHASE] != P_IDLE:
+                        store_entry(fs, ist, q, table, rigid, out_f, out_clamped)
+                        ist[q, I_PHASE] = P_IDLE
+                    if e == e_end:
+                        break
+                    load_entry(fs, ist, q, e // m, e % m, lmt, act, table, rigid, search)
+                    e += 1
+                busy = busy or ist[q, I_PHASE] <= P_ROOT

@@ -11,7 +11,7 @@ from .kinematics import ConfigLike, Kinematics, KinematicsState
 from .osim import OsimModel, load_osim_file
 from .errors import UnsupportedFeatureError
 from .paths import PathResult, PathSet
-from .thelen2003 import ThelenParams, equilibrium
+from .thelen2003 import ThelenParams, equilibrium, tendon_force
 from .urdf_build import GAIT2392_DATA, GAIT2392_URDF, cached_urdf, load_model_data
 
 
@@ -164,7 +164,7 @@ class Model:
         """Static (zero fibre velocity) tendon forces (N, n_muscles) [N], OpenSim's equilibrium."""
         params = self._check_forces()
         L = self.lengths(q)
-        return equilibrium(L, params, activation, rigid_tendon=rigid_tendon).tendon_force
+        return tendon_force(L, params, activation, rigid_tendon=rigid_tendon)
 
     def torques(self, q: ConfigLike, activation: float | np.ndarray = 1.0,
                 rigid_tendon: bool = False) -> np.ndarray:

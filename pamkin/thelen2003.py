@@ -1,4 +1,4 @@
-"""Static equilibrium of OpenSim 4.6's ``Thelen2003Muscle``, vectorized with numpy.
+"""Static equilibrium of OpenSim 4.6's ``Thelen2003Muscle``, compiled with numba.
 
 At zero fibre velocity the force-velocity multiplier of the Thelen (2003) model
 is exactly 1, so the musculotendon equilibrium that OpenSim's
@@ -26,18 +26,29 @@ zero active fibre force. :func:`equilibrium` reproduces exactly that and
 flags those entries in :attr:`Equilibrium.clamped`.
 
 One path-dependent quirk of OpenSim is reproduced too: for an unpennated muscle
-(``l_min = 0``) whose equilibrium fibre would be only micrometres long, OpenSim's
-Newton search can land on ``l = 0``, where its slope is 0/0, and stay there; it
-then reports the fibre clamped at 0 and the tendon force ``Fmax·fT(lMT/lTs)``.
-:func:`equilibrium` replays OpenSim's search (vectorized) to find those entries
-(``opensim_search=False`` skips this and keeps the force continuous in ``lMT``).
+(``l_min = 0``) whose equilibrium fibre would be very short (under 0.3 mm on
+Gait2392), OpenSim's Newton search can land on ``l = 0``, where its slope is 0/0,
+and stay there; it then reports the fibre clamped at 0 and the tendon force
+``Fmax·fT(lMT/lTs)``.
+:func:`equilibrium` replays OpenSim's search (from OpenSim's own starting guess) to
+find those entries (``opensim_search=False`` skips this and keeps the force
+continuous in ``lMT``).
 
-The root itself is found for all configurations and muscles at once with a
-bracketed, safeguarded Newton iteration on the fibre length along the tendon
-(bisection whenever a Newton step would leave the bracket), to a residual far
-below OpenSim's own tolerance of ``1e-8·Fmax``. Where OpenSim's search would
-fail (it then raises ``MuscleCannotEquilibrate``; never seen on Gait2392) the
-true equilibrium is returned.
+The root itself is then found with a bracketed, safeguarded Newton iteration on the
+fibre length along the tendon (bisection whenever a Newton step would leave the
+bracket), to a residual far below OpenSim's own tolerance of ``1e-8·Fmax``, started
+from the replayed search's answer (or, with ``opensim_search=False``, from one
+fixed-point step away from the rigid-tendon solution). Where OpenSim's search would
+fail (it then raises ``MuscleCannotEquilibrate``; never seen on Gait2392) the true
+equilibrium is returned.
+
+**Implementation.** Every formula (curves, pennation geometry, the search replay,
+clamping) is written once, as scalar numba functions in
+:mod:`pamkin._thelen_kernel`; :func:`equilibrium` runs them over all
+(configuration, muscle) pairs in one compiled kernel, in parallel over chunks of
+configurations (``NUMBA_NUM_THREADS`` threads), and the public curve functions are
+numba ufuncs built on the same definitions. The first call in a fresh environment
+compiles the kernel (a few seconds; cached on disk afterwards).
 
 Parameters that only matter away from zero fibre velocity (``af``, ``flen``,
 ``max_contraction_velocity``, ``fv_linear_extrap_threshold``) are carried in
@@ -56,6 +67,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, fields
 from pathlib import Path
 
+import numba
 import numpy as np
 
 from pamkin import _thelen_kernel as _k
@@ -351,10 +363,16 @@ class Equilibrium:
     clamped: np.ndarray
 
 
+#: Default iteration limit of the root search.
+_MAX_ITERATIONS = 100
+
+
 def _prepare(lmt: np.ndarray, params: ThelenParams,
              activation: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Check the inputs; return the lengths as (N, n_muscles) and the activation broadcast to
-    them (a read-only view; clamped to [minimum_activation, 1] by the kernel)."""
+    """Check the inputs; return the lengths as (N, n_muscles) and the activation as an
+    (N or 1, n_muscles or 1) array that broadcasts to them (clamped to
+    [minimum_activation, 1] by the kernel). Both are writable C arrays: one compiled
+    kernel serves every input."""
     lmt = np.asarray(lmt, dtype=float)
     if lmt.ndim == 0 or lmt.shape[-1] != params.n_muscles:
         raise ConfigurationError(
@@ -369,7 +387,12 @@ def _prepare(lmt: np.ndarray, params: ThelenParams,
     if not np.all(np.isfinite(np.asarray(activation, dtype=float))):
         raise ConfigurationError("activation must be finite")
     m = params.n_muscles
-    return np.ascontiguousarray(lmt.reshape(-1, m)), act.reshape(-1, m)
+    act = act.reshape(-1, m)
+    if act.strides[0] == 0:  # the same for every configuration
+        act = act[:1]
+    if act.strides[1] == 0:  # the same for every muscle
+        act = act[:, :1]
+    return np.require(lmt.reshape(-1, m), float, ["C", "W"]), np.array(act, dtype=float)
 
 
 def _muscle_table(params: ThelenParams) -> np.ndarray:
@@ -383,7 +406,7 @@ def _muscle_table(params: ThelenParams) -> np.ndarray:
 
 def equilibrium(lmt: np.ndarray, params: ThelenParams, activation: float | np.ndarray = 1.0,
                 rigid_tendon: bool = False, *, opensim_search: bool = True,
-                max_iterations: int = 100) -> Equilibrium:
+                max_iterations: int = _MAX_ITERATIONS) -> Equilibrium:
     """Static (zero fibre velocity) equilibrium of OpenSim 4.6 Thelen2003 muscles.
 
     Args:
@@ -402,10 +425,12 @@ def equilibrium(lmt: np.ndarray, params: ThelenParams, activation: float | np.nd
         opensim_search: If True (default), replay OpenSim's own Newton search to decide
             where OpenSim leaves the fibre clamped at its minimum length although an
             equilibrium exists above it (only seen for unpennated muscles whose fibre would
-            be micrometres long; see :func:`_opensim_search`). If False, the fibre is
-            clamped only where no equilibrium exists above the minimum length, which makes
-            the force a continuous function of ``lmt``.
-        max_iterations: Iteration limit of the root search (it normally stops after 5–15).
+            be a fraction of a millimetre long; see
+            :func:`pamkin._thelen_kernel.search_update`). If False, the fibre is clamped
+            only where no equilibrium exists above the minimum length, which makes the force
+            a continuous function of ``lmt``.
+        max_iterations: Iteration limit of the root search (it normally stops after 1–2
+            iterations when started from OpenSim's answer, under 10 otherwise).
 
     Returns:
         The equilibrium, every field shaped like ``lmt``.
@@ -415,38 +440,60 @@ def equilibrium(lmt: np.ndarray, params: ThelenParams, activation: float | np.nd
             ``activation`` is not finite or does not broadcast.
     """
     shape = np.shape(lmt)
-    lmt2, act2 = _prepare(lmt, params, activation)
-    out = {key: np.empty(lmt2.shape) for key in _FLOAT_FIELDS}
-    clamped = np.empty(lmt2.shape, dtype=bool)
-    _k.equilibrium_kernel(lmt2, act2, _muscle_table(params), bool(rigid_tendon),
-                          bool(opensim_search), int(max_iterations),
-                          *(out[key] for key in _FLOAT_FIELDS), clamped)
-    return Equilibrium(**{key: arr.reshape(shape) for key, arr in out.items()},
+    out, clamped = _solve(lmt, params, activation, rigid_tendon, opensim_search, max_iterations,
+                          _k.N_OUTPUTS)
+    return Equilibrium(**{key: out[row].reshape(shape) for key, row in _OUTPUT_ROWS.items()},
                        clamped=clamped.reshape(shape))
 
 
-#: Float fields of :class:`Equilibrium` in the kernel's output order.
-_FLOAT_FIELDS = ("fiber_length", "normalized_fiber_length", "pennation_angle", "tendon_length",
-                 "tendon_force", "active_fiber_force", "passive_fiber_force")
+def _solve(lmt, params: ThelenParams, activation, rigid_tendon: bool, opensim_search: bool,
+           max_iterations: int, n_outputs: int) -> tuple[np.ndarray, np.ndarray]:
+    """Run the compiled kernel: (n_outputs, N, n_muscles) float results (all of
+    :data:`_OUTPUT_ROWS`, or the tendon force only) and the (N, n_muscles) clamped flags."""
+    lmt2, act2 = _prepare(lmt, params, activation)
+    out = np.empty((n_outputs, *lmt2.shape))
+    clamped = np.empty(lmt2.shape, dtype=bool)
+    # hand out work dynamically (balances threads when another process shares a core)
+    chunksize = numba.set_parallel_chunksize(_k.CHUNKS_PER_GRAB)
+    try:
+        _k.equilibrium_kernel(lmt2, act2, _muscle_table(params), bool(rigid_tendon),
+                              bool(opensim_search), int(max_iterations), out, clamped)
+    finally:
+        numba.set_parallel_chunksize(chunksize)
+    return out, clamped
+
+
+#: Float fields of :class:`Equilibrium` -> row of the kernel's output array.
+_OUTPUT_ROWS = {"fiber_length": _k.O_FIBER_LENGTH,
+                "normalized_fiber_length": _k.O_NORMALIZED_FIBER_LENGTH,
+                "pennation_angle": _k.O_PENNATION_ANGLE, "tendon_length": _k.O_TENDON_LENGTH,
+                "tendon_force": _k.O_TENDON_FORCE, "active_fiber_force": _k.O_ACTIVE_FIBER_FORCE,
+                "passive_fiber_force": _k.O_PASSIVE_FIBER_FORCE}
 
 
 def tendon_force(lmt: np.ndarray, params: ThelenParams, activation: float | np.ndarray = 1.0,
-                 rigid_tendon: bool = False) -> np.ndarray:
+                 rigid_tendon: bool = False, *, opensim_search: bool = True) -> np.ndarray:
     """Static equilibrium tendon force of OpenSim 4.6 Thelen2003 muscles.
 
-    Shorthand for ``equilibrium(lmt, params, activation, rigid_tendon).tendon_force``;
-    matches ``Model.equilibrateMuscles`` + ``Muscle.getTendonForce`` at zero speeds.
+    Equals ``equilibrium(lmt, params, activation, rigid_tendon).tendon_force`` but stores
+    nothing else (a fraction of the memory traffic); matches ``Model.equilibrateMuscles`` +
+    ``Muscle.getTendonForce`` at zero speeds.
 
     Args:
         lmt: (..., n_muscles) musculotendon lengths [m].
         params: Muscle parameters.
         activation: Activation, scalar or broadcastable to ``lmt`` [-].
         rigid_tendon: Inextensible tendon (see :func:`equilibrium`).
+        opensim_search: Replay OpenSim's search (see :func:`equilibrium`).
 
     Returns:
         Tendon force [N], shaped like ``lmt``.
+
+    Raises:
+        ConfigurationError: as :func:`equilibrium`.
     """
-    return equilibrium(lmt, params, activation, rigid_tendon).tendon_force
+    out, _ = _solve(lmt, params, activation, rigid_tendon, opensim_search, _MAX_ITERATIONS, 1)
+    return out[0].reshape(np.shape(lmt))
 
 
 # ----------------------------------------------------------------------------------------------

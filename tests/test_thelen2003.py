@@ -176,6 +176,108 @@ def test_input_errors():
         tendon_force(np.ones((4, 1)), p, activation=np.nan)
 
 
+def _gait_like_muscles() -> ThelenParams:
+    """Five muscles spanning Gait2392's range (unpennated, pennated, short and long tendons)."""
+    return ThelenParams(max_isometric_force=[500.0, 800.0, 1500.0, 200.0, 3000.0],
+                        optimal_fiber_length=[0.1, 0.08, 0.05, 0.2, 0.03],
+                        tendon_slack_length=[0.2, 0.3, 0.05, 0.1, 0.35],
+                        pennation_angle_at_optimal=[0.0, 0.2, 0.35, 0.0, 0.4],
+                        **GAIT_CURVES)
+
+
+def _random_lengths(p: ThelenParams, n: int, seed: int = 1) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    stretch = rng.uniform(0.6, 1.4, (n, p.n_muscles))
+    return (p.tendon_slack_length + p.optimal_fiber_length) * stretch
+
+
+def test_rows_are_independent_of_batching():
+    """Each (configuration, muscle) is solved on its own: the parallel chunking changes nothing."""
+    p = _gait_like_muscles()
+    lmt = _random_lengths(p, 301)
+    lmt[7, 2] = np.nan
+    a = np.random.default_rng(2).uniform(0.0, 1.0, lmt.shape)
+    for search in (True, False):
+        eq = equilibrium(lmt, p, activation=a, opensim_search=search)
+        for i in (0, 7, 63, 64, 150, 300):
+            row = equilibrium(lmt[i], p, activation=a[i], opensim_search=search)
+            for f in ("tendon_force", "fiber_length", "pennation_angle", "clamped"):
+                np.testing.assert_array_equal(getattr(row, f), getattr(eq, f)[i])
+
+
+def test_tendon_force_equals_the_equilibrium_field():
+    p = _gait_like_muscles()
+    lmt = _random_lengths(p, 130)
+    lmt[3, 1] = np.nan
+    for kw in ({}, {"opensim_search": False}, {"rigid_tendon": True}, {"activation": 0.3}):
+        np.testing.assert_array_equal(tendon_force(lmt, p, **kw),
+                                      equilibrium(lmt, p, **kw).tendon_force)
+
+
+def test_activation_broadcasting_and_input_layouts():
+    p = _gait_like_muscles()
+    lmt = _random_lengths(p, 40)
+    per_muscle = np.array([0.0, 0.2, 0.5, 0.9, 1.0])
+    ref = np.stack([tendon_force(lmt[:, j:j + 1].copy(),
+                                 ThelenParams(**{f: getattr(p, f)[j:j + 1] for f in
+                                                 ("max_isometric_force", "optimal_fiber_length",
+                                                  "tendon_slack_length",
+                                                  "pennation_angle_at_optimal")},
+                                              **GAIT_CURVES),
+                                 activation=per_muscle[j])[:, 0] for j in range(5)], axis=1)
+    full = np.broadcast_to(per_muscle, lmt.shape).copy()
+    readonly = lmt.copy()
+    readonly.setflags(write=False)
+    wide = np.zeros((40, 10))
+    wide[:, ::2] = lmt  # non-contiguous view
+    for lengths, act in ((lmt, per_muscle), (lmt, full), (np.asfortranarray(lmt), full.T.T),
+                         (readonly, per_muscle), (wide[:, ::2], per_muscle[None, :])):
+        np.testing.assert_array_equal(tendon_force(lengths, p, activation=act), ref)
+    # (N, 1) activation: one value per configuration
+    col = np.linspace(0.0, 1.0, 40)[:, None]
+    f = tendon_force(lmt, p, activation=col)
+    np.testing.assert_array_equal(f[5], tendon_force(lmt[5], p, activation=col[5, 0]))
+
+
+def test_curves_broadcast_like_ufuncs():
+    assert force_length_active(np.ones((2, 3)), [0.4, 0.5, 0.6]).shape == (2, 3)
+    assert force_length_passive(1, 1, 4).dtype == np.float64  # integers are accepted
+    assert tendon_force_length(np.array([1.0, 1.02]), np.array([[0.033], [0.04]])).shape == (2, 2)
+    assert np.isnan(force_length_active(np.nan))
+
+
+def test_tendon_strain_inverts_tendon_curve():
+    from pamkin import _thelen_kernel as k
+
+    for e0 in (0.02, 0.033, 0.1):
+        constants = k.tendon_constants(e0)
+        for e in np.concatenate([np.linspace(0.0, 3 * e0, 61)[1:], [1e-9, constants[0]]]):
+            f = tendon_force_length(1.0 + e, e0)
+            assert k.tendon_strain(f, *constants) == pytest.approx(e, rel=1e-9, abs=1e-15)
+        assert k.tendon_strain(0.0, *constants) == 0.0
+
+
+def test_opensim_search_only_adds_clamping_of_tiny_unpennated_fibres():
+    """The replay of OpenSim's search changes results only where it leaves an unpennated fibre
+    stuck at length 0 although an equilibrium exists (with a fibre well under 1% of l0)."""
+    p = _gait_like_muscles()
+    lmt = _random_lengths(p, 2000, seed=3)
+    # include lengths where an unpennated fibre is barely longer than 0 at equilibrium
+    lmt[:400, 0] = np.linspace(0.2, 0.2 * 1.05, 400)
+    replay = equilibrium(lmt, p)
+    smooth = equilibrium(lmt, p, opensim_search=False)
+    extra = replay.clamped & ~smooth.clamped
+    assert not (smooth.clamped & ~replay.clamped).any()
+    assert extra.any()
+    muscle = np.nonzero(extra)[1]
+    assert (p.pennation_angle_at_optimal[muscle] == 0.0).all()
+    assert (smooth.fiber_length[extra] < 1e-2 * p.optimal_fiber_length[muscle]).all()
+    np.testing.assert_array_equal(replay.fiber_length[extra], 0.0)
+    same = ~extra
+    np.testing.assert_allclose(replay.tendon_force[same], smooth.tendon_force[same],
+                               rtol=1e-12, atol=1e-9)
+
+
 # ----------------------------------------------------------------------------------------------
 # Properties
 # ----------------------------------------------------------------------------------------------
