@@ -200,3 +200,15 @@ def test_chunked_evaluation_equals_one_batch(gait2392):
     assert [sl.start for sl, _ in parts] == [0, 64, 128, 192]
     assert np.array_equal(np.vstack([st.tendon_forces for _, st in parts]), whole.tendon_forces)
     assert np.array_equal(np.vstack([st.pair_torques for _, st in parts]), whole.pair_torques)
+
+
+@pytest.mark.opensim
+def test_every_muscle_coordinate_pair_matches_opensim(gait2392, gait2392_path):
+    """All 92 x 23 moment arms (not only the 262 spanned pairs) at a few configurations."""
+    q = gait2392.random_q(4, seed=38)
+    pairs = np.array([(m, c) for m in range(92) for c in range(23)])
+    ref = opensim_reference(gait2392_path, q, what=("moment_arms",), pairs=pairs)
+    R = gait2392.moment_arms(q)[:, pairs[:, 0], pairs[:, 1]]
+    err = np.abs(R - ref["moment_arms"])
+    print(f"all {len(pairs)} pairs: max moment-arm error {err.max():.2e} m")
+    assert err.max() <= 1e-7

@@ -174,3 +174,16 @@ def test_default_run_meets_the_goals(tmp_path):
     assert sum(r["nrmse_after"] <= 0.20 for r in rows) >= 22
     assert max(r["casadi_numpy_max_torque_diff_Nm"] for r in rows) <= 1e-9
     assert s["median_nrmse_after"] < 0.5 * s["median_nrmse_before"]
+
+
+def test_optimize_cli_one_actuator(tmp_path, capsys):
+    from pamkin.cli import main
+
+    out = tmp_path / "run"
+    assert main(["optimize", "--actuators", "26", "--workers", "1", "--out", str(out), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "Iliacus" in text and "median NRMSE" in text
+    s = json.loads((out / "summary.json").read_text())
+    assert s["actuators"][0]["id"] == 26 and s["actuators"][0]["buildable"]
+    assert main(["optimize", "--actuators", "99", "--out", str(tmp_path / "bad")]) == 2
+    assert "unknown actuator id(s) [99]" in capsys.readouterr().err
