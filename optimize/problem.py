@@ -80,7 +80,6 @@ class ActuatorProblem:
         loc = {i: self.z[3 * k:3 * k + 3] for k, i in enumerate(self.free)}
         self.l0 = self.z[nz - 2]
         self.t = self.z[nz - 1]
-        S = data.q.shape[0]
         # world positions (3, S) of every route point
         X = []
         self.offset = {}
@@ -122,7 +121,7 @@ class ActuatorProblem:
             if peak > 1e-9:
                 J = J + w * ca.sumsqr(tr - _dm(th[None, :])) / (len(cols) * peak ** 2)
         reg = 0
-        for k, i in enumerate(self.free):
+        for i in self.free:
             sc = np.maximum(np.asarray(regions[i], float), 1e-3)
             reg = reg + ca.sumsqr((loc[i] - _dm(self.seed[i])) / _dm(sc))
         self.J = J + cfg.regularization * reg
@@ -174,7 +173,7 @@ class ActuatorProblem:
         self.g = ca.vertcat(*g)
         self.lbg, self.ubg, self.family = np.array(lbg), np.array(ubg), fam
         # variable bounds
-        lbx, ubx, x0 = [], [], []
+        lbx, ubx = [], []
         for i in self.free:
             r = np.asarray(regions[i], float)
             lbx += list(self.seed[i] - r)

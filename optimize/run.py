@@ -227,7 +227,6 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
     from .check import summarize  # noqa: PLC0415
     from .plots import before_after_plot  # noqa: PLC0415
 
-    import pamkin  # noqa: PLC0415
     from pamkin.robot import robot_skeleton  # noqa: PLC0415
 
     t0 = time.perf_counter()

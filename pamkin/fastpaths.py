@@ -311,7 +311,6 @@ if numba is not None:
         nb = b_joint.shape[0]
         nc = q.shape[1]
         npnt = pt_body.shape[0]
-        M = m_start.shape[0]
         nch = min(N, 64)
         for ch in prange(nch):
             jR = np.empty((nj + 1, 3, 3))   # slot nj: the universe (identity), for bodies welded to ground

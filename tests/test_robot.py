@@ -11,13 +11,12 @@ import numpy as np
 import pytest
 import yaml
 
-import pamkin
 from pamkin import festo
 from pamkin.cli import main
 from pamkin.compare import compare_design, torque_match
 from pamkin.design import THESIS_DESIGN, load_design, save_design
 from pamkin.errors import DataFileError
-from pamkin.robot import PamRobot, robot_skeleton, thesis_robot
+from pamkin.robot import robot_skeleton, thesis_robot
 from pamkin.urdf_build import ROBOT_URDF
 
 ROOT = Path(__file__).resolve().parents[1]
