@@ -215,15 +215,39 @@ def design_from_dict(data: dict, path: str = "<design>", bodies: list[str] | Non
         raise _fail(path, f"bad top-level field: {e}") from None
 
 
+def resolve_design_path(design: str | os.PathLike | None = None) -> Path:
+    """The design file a user argument names.
+
+    Args:
+        design: ``None`` (the robot's current design ``robot/data/pam_biped.yaml``), the keyword
+            ``"thesis"`` (``robot/data/thesis_design.yaml``), a design file, or a run folder of
+            ``pamkin optimize`` (its ``design.yaml``).
+
+    Raises:
+        DataFileError: A folder without a ``design.yaml``.
+    """
+    if design is None:
+        return ROBOT_DESIGN
+    if str(design) == "thesis":
+        return THESIS_DESIGN
+    path = Path(design)
+    if path.is_dir():
+        if not (path / "design.yaml").is_file():
+            raise _fail(str(path), "a folder given as design must be a pamkin optimize run folder holding design.yaml")
+        return path / "design.yaml"
+    return path
+
+
 def load_design(path: str | os.PathLike = ROBOT_DESIGN, bodies: list[str] | None = None,
                 coordinates: list[str] | None = None) -> Design:
-    """Read and validate a design file (``"thesis"`` names the built-in thesis design).
+    """Read and validate a design file (``"thesis"`` names the built-in thesis design, a folder
+    the ``design.yaml`` of a ``pamkin optimize`` run; see :func:`resolve_design_path`).
 
     Raises:
         DataFileError: Malformed YAML, missing fields, unknown diameter/body/coordinate,
             non-positive lengths — naming the file and the PAM.
     """
-    path = THESIS_DESIGN if str(path) == "thesis" else Path(path)
+    path = resolve_design_path(path)
     try:
         data = yaml.safe_load(path.read_text())
     except FileNotFoundError:
