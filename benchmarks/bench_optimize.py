@@ -25,8 +25,8 @@ def main() -> int:
     ap.add_argument("--config", help="TOML run description (default: defaults)")
     ap.add_argument("--out", help="run folder (default: a temporary folder)")
     args = ap.parse_args()
-    from optimize.config import load_config
-    from optimize.run import run
+    from pamkin.optimize.config import load_config
+    from pamkin.optimize.run import run
 
     cfg = load_config(args.config)
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="pamkin-bench-"))

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from pamkin._resources import data_file
 from pamkin.design import Pam
 from pamkin.model import Model
 from pamkin.osim import MovingPathPoint
@@ -21,7 +22,7 @@ from pamkin.rom import RangeOfMotion
 
 from .config import RunConfig
 
-CAPSULES_FILE = Path(__file__).resolve().parents[1] / "robot" / "data" / "bone_capsules.yaml"
+CAPSULES_FILE = data_file("bone_capsules.yaml")
 #: Interior points of each route segment checked against the bone capsules (segment parameter).
 CLEARANCE_T = (0.15, 0.325, 0.5, 0.675, 0.85)
 #: Margins the optimiser keeps from its limits, so that the limits also hold between samples.

@@ -13,10 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ._resources import DEFAULT_OSIM  # re-exported: pamkin.cli.DEFAULT_OSIM
 from .errors import PamkinError
-
-DEFAULT_OSIM = (Path(__file__).resolve().parents[2] / "shared" / "opensim-models" / "Gait2392_Simbody"
-                / "gait2392_thelen2003muscle.osim")
 
 
 def _load(osim: str | None):

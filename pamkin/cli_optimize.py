@@ -30,8 +30,8 @@ def add_parsers(sub) -> None:
 
 
 def cmd_optimize(args: argparse.Namespace) -> int:
-    from optimize.config import load_config  # noqa: PLC0415
-    from optimize.run import InfeasibleError, run  # noqa: PLC0415
+    from pamkin.optimize.config import load_config  # noqa: PLC0415
+    from pamkin.optimize.run import InfeasibleError, run  # noqa: PLC0415
 
     from .errors import ConfigurationError  # noqa: PLC0415
 

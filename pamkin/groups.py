@@ -11,9 +11,10 @@ from pathlib import Path
 
 import yaml
 
+from ._resources import data_file
 from .errors import DataFileError
 
-GROUPS_FILE = Path(__file__).resolve().parent.parent / "robot" / "data" / "muscle_groups.yaml"
+GROUPS_FILE = data_file("muscle_groups.yaml")
 
 
 @dataclass(frozen=True)

@@ -18,9 +18,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ._resources import data_file
 from .errors import ConfigurationError, DataFileError
 
-ROM_FILE = Path(__file__).resolve().parent.parent / "robot" / "data" / "rom.yaml"
+ROM_FILE = data_file("rom.yaml")
 
 
 @dataclass(frozen=True)

@@ -17,14 +17,13 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ._resources import ROBOT_DIR, URDF_DIR, cache_dir
 from .errors import BuildError, DataFileError
 from .functions import LinearFunction
 from .osim import Coordinate, Joint, OsimModel, TransformAxis, load_osim_file, model_from_dict, model_to_dict
 
-#: Folder holding the Xacro sources and the project data files.
-ROBOT_DIR = Path(os.environ.get("PAMKIN_ROBOT_DIR", Path(__file__).resolve().parent.parent / "robot"))
-#: Folder of the generated URDFs that are committed.
-URDF_DIR = ROBOT_DIR.parent / "urdf"
+# ROBOT_DIR (Xacro sources and project data files) and URDF_DIR (generated URDFs) come from
+# pamkin._resources: inside the installed package, or the checkout's robot/ and urdf/.
 OSIM_XACRO = ROBOT_DIR / "osim_model.urdf.xacro"
 
 
@@ -261,7 +260,7 @@ def cached_urdf(model: OsimModel) -> Path:
     model file's content and the Xacro sources, so an edited model is rebuilt.
     """
     h = hashlib.sha256(Path(model.path).read_bytes()).hexdigest()[:16]
-    root = Path(os.environ.get("PAMKIN_CACHE", Path.home() / ".cache" / "pamkin"))
+    root = cache_dir()
     folder = root / f"{h}-{source_hash()}"
     urdf = folder / "model.urdf"
     if not urdf.exists():

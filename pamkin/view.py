@@ -42,12 +42,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ._resources import DEFAULT_GEOMETRY as _DEFAULT_GEOMETRY
 from .errors import ConfigurationError, PamkinError, RangeWarning
 
 __all__ = ["ColorScale", "StaticWindow", "View", "build_view", "screenshot", "simple_bone_meshes"]
 
 #: OpenSim's Geometry folder beside the repository (``../shared/opensim-models/Geometry``).
-DEFAULT_GEOMETRY = Path(__file__).resolve().parents[2] / "shared" / "opensim-models" / "Geometry"
+DEFAULT_GEOMETRY = _DEFAULT_GEOMETRY
 #: Radius of the human muscle cylinders [m].
 MUSCLE_RADIUS = 0.004
 #: Radius of the thin cylinders under each PAM route (fittings and artificial tendon) [m].

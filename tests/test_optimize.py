@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 import pamkin
-from optimize import run as run_mod
-from optimize.config import RunConfig, load_config
-from optimize.problem import ActuatorProblem
-from optimize.run import InfeasibleError, run
-from optimize.samples import actuator_data
+from pamkin.optimize import run as run_mod
+from pamkin.optimize.config import RunConfig, load_config
+from pamkin.optimize.problem import ActuatorProblem
+from pamkin.optimize.run import InfeasibleError, run
+from pamkin.optimize.samples import actuator_data
 from pamkin.design import Design, Pam, ROBOT_DESIGN, load_design
 from pamkin.errors import DataFileError
 from pamkin.osim import PathPoint

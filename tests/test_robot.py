@@ -211,6 +211,6 @@ def test_examples_run():
     proc = subprocess.run([sys.executable, str(ROOT / "examples" / "library_use.py")], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert "semimembranosus PAM strain range" in proc.stdout
-    from optimize.config import load_config
+    from pamkin.optimize.config import load_config
 
     assert load_config(ROOT / "examples" / "knee_pams.toml").actuators == [4, 5, 6, 9, 10, 11]
