@@ -27,12 +27,13 @@ def cmd_urdf(args: argparse.Namespace) -> int:
     from .urdf_build import build_gait2392  # noqa: PLC0415
 
     osim = Path(args.osim) if args.osim else DEFAULT_OSIM
-    files = build_gait2392(osim, check=args.check)
+    files = build_gait2392(osim, check=args.check, geometry_dir=args.geometry)
     if args.check:
         if files:
             print("stale (regenerate with `pamkin urdf`): " + ", ".join(str(f) for f in files))
             return 1
-        print("robot/data/gait2392.yaml, urdf/gait2392.urdf and urdf/pam_biped.urdf are up to date")
+        print("robot/data/gait2392.yaml, urdf/gait2392.urdf, urdf/pam_biped.urdf and the bone meshes "
+              "urdf/meshes/*.stl are up to date")
         return 0
     for f in files:
         print(f"wrote {f}")
@@ -68,11 +69,16 @@ def build_parser() -> argparse.ArgumentParser:
                     "Without --osim, commands use the built-in Gait2392 data (robot/data, urdf/).")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    s = sub.add_parser("urdf", help="regenerate the built-in data and URDFs from Gait2392's .osim",
+    s = sub.add_parser("urdf", help="regenerate the built-in data, bone meshes and URDFs from Gait2392's .osim",
                        description="Import OpenSim's Gait2392 .osim, write the project data file "
-                                   "robot/data/gait2392.yaml and render urdf/gait2392.urdf and the robot's "
-                                   "urdf/pam_biped.urdf (robot/data/pam_biped.yaml design) with xacro.")
-    s.add_argument("--osim", help=f"the .osim file (default: {DEFAULT_OSIM})")
+                                   "robot/data/gait2392.yaml and the bone meshes urdf/meshes/*.stl (from the "
+                                   "model's .vtp files, decimated) and render urdf/gait2392.urdf and the robot's "
+                                   "urdf/pam_biped.urdf (robot/data/pam_biped.yaml design) with xacro. Needs the "
+                                   "OpenSim model files (not part of an installed pamkin).")
+    s.add_argument("--osim", metavar="FILE", help=f"the .osim file (default: {DEFAULT_OSIM})")
+    s.add_argument("--geometry", metavar="DIR",
+                   help="folder of the .vtp bone meshes (default: Geometry/ beside the model, its folder or "
+                        "../Geometry, as OpenSim looks)")
     s.add_argument("--check", action="store_true", help="write nothing; exit 1 if the files are stale")
     s.set_defaults(func=cmd_urdf)
 
@@ -92,6 +98,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     cli_export.add_parsers(sub)
     cli_visual.add_parsers(sub)
+    from . import cli_gait; cli_gait.add_parsers(sub)  # noqa: E702, PLC0415
     return p
 
 

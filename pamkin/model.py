@@ -237,18 +237,30 @@ class Model:
         return lo + (hi - lo) * rng.random((n, len(lo)))
 
 
-def load_osim(path: str | os.PathLike, engine: str = "compiled") -> Model:
+def load_osim(path: str | os.PathLike, engine: str = "compiled",
+              geometry: str | os.PathLike | None = None) -> Model:
     """Load an OpenSim ``.osim`` model: import → Xacro → URDF (cached) → Pinocchio.
+
+    The URDF (in the cache folder, ``$PAMKIN_CACHE``) gets the model's bone meshes as
+    ``<visual>`` elements (binary STL files in ``meshes/`` beside it, decimated) when the
+    ``.vtp`` files are found: in ``geometry``, or where OpenSim looks (``Geometry/`` beside the
+    model file, the model's folder, ``../Geometry``). Without them the URDF has no visuals.
 
     Args:
         path: The ``.osim`` file (OpenSim 4.x format).
+        engine: ``"compiled"`` (default) or ``"numpy"``.
+        geometry: Folder of the ``.vtp`` meshes (default: found beside the model).
 
     Raises:
         pamkin.errors.OsimError: The file is malformed.
         pamkin.errors.UnsupportedFeatureError: It uses features pamkin does not implement.
+        pamkin.errors.DataFileError: ``geometry`` is not a folder, or a mesh file is corrupt.
     """
+    from .meshes import find_geometry_dir  # noqa: PLC0415
+
     osim = load_osim_file(path)
-    return Model(osim, cached_urdf(osim), engine=engine)
+    folder = geometry if geometry is not None else find_geometry_dir(path)
+    return Model(osim, cached_urdf(osim, folder), engine=engine)
 
 
 def gait2392(engine: str = "compiled") -> Model:

@@ -14,10 +14,12 @@ import os
 import tempfile
 from pathlib import Path
 
+from collections.abc import Iterable
+
 import numpy as np
 import yaml
 
-from ._resources import ROBOT_DIR, URDF_DIR, cache_dir
+from ._resources import MESH_DIR, ROBOT_DIR, URDF_DIR, cache_dir
 from .errors import BuildError, DataFileError
 from .functions import LinearFunction
 from .osim import Coordinate, Joint, OsimModel, TransformAxis, load_osim_file, model_from_dict, model_to_dict
@@ -82,20 +84,26 @@ def _axis_specs(joint: Joint, coords: dict[str, Coordinate]) -> list[dict]:
     return specs
 
 
-def urdf_data(model: OsimModel) -> dict:
+def urdf_data(model: OsimModel, meshes: Iterable[str] = ()) -> dict:
     """The plain data (bodies, joints as URDF chains) the Xacro macros expand.
 
     Args:
         model: An imported model.
+        meshes: The model's mesh files (``femur_r.vtp``) that are available as STL files beside
+            the URDF (see :mod:`pamkin.meshes`); each becomes a ``<visual>`` of its body.
 
     Returns:
-        A YAML-serialisable dict: ``bodies`` (name, mass, mass_center, inertia) and
+        A YAML-serialisable dict: ``bodies`` (name, mass, mass_center, inertia, ``visuals``: mesh
+        path relative to the URDF, origin ``xyz``/``rpy`` in the body frame, ``scale``) and
         ``joints`` (name, parent, child, parent offset ``parent_xyz``/``parent_rpy``,
         child-offset inverse ``child_xyz``/``child_rpy``, and ``axes``).
     """
+    from .meshes import visual_specs  # noqa: PLC0415
+
     coords = {c.name: c for c in model.coordinates}
+    visuals = visual_specs(model, meshes)
     bodies = [dict(name=b.name, mass=float(b.mass), mass_center=_vec(b.mass_center),
-                   inertia=[float(v) for v in b.inertia]) for b in model.bodies]
+                   inertia=[float(v) for v in b.inertia], visuals=visuals[b.name]) for b in model.bodies]
     joints = []
     for j in model.joints:
         Tp = j.parent_frame.transform()
@@ -109,14 +117,14 @@ def urdf_data(model: OsimModel) -> dict:
     return {"bodies": bodies, "joints": joints}
 
 
-def model_data(model: OsimModel) -> dict:
+def model_data(model: OsimModel, meshes: Iterable[str] = ()) -> dict:
     """The project's model data file content: the full model and its URDF chains.
 
     ``model`` holds the imported model losslessly (bodies, joints with their functions,
     coordinates, muscles with paths and parameters); ``urdf`` the numbers the Xacro
     macros expand.
     """
-    return {"model": model_to_dict(model), "urdf": urdf_data(model)}
+    return {"model": model_to_dict(model), "urdf": urdf_data(model, meshes)}
 
 
 def load_model_data(path: str | os.PathLike) -> OsimModel:
@@ -147,9 +155,9 @@ def atomic_write(path: Path, text: str | bytes) -> None:
         raise
 
 
-def write_model_data(model: OsimModel, path: Path) -> Path:
+def write_model_data(model: OsimModel, path: Path, meshes: Iterable[str] = ()) -> Path:
     """Write :func:`model_data` of ``model`` to a YAML file (atomically)."""
-    atomic_write(Path(path), model_data_text(model))
+    atomic_write(Path(path), model_data_text(model, meshes))
     return Path(path)
 
 
@@ -189,24 +197,36 @@ def render_robot_urdf(design_path: Path | None = None, skeleton_path: Path | Non
                         f"{ROBOT_XACRO.name}, {skeleton_path.name}, {design_path.name} and rom.yaml ({rom})")
 
 
-def build(model: OsimModel, data_path: Path, urdf_path: Path, name: str) -> tuple[str, str]:
-    """Write the model data file and the URDF rendered from it (both atomically).
+def build(model: OsimModel, data_path: Path, urdf_path: Path, name: str,
+          geometry_dir: str | os.PathLike | None = None, write_meshes: bool = True) -> tuple[str, str, dict]:
+    """Write the model data file, the bone meshes and the URDF rendered from them (atomically).
+
+    Args:
+        geometry_dir: Folder of the model's ``.vtp`` meshes (None: a URDF without visuals).
+        write_meshes: Also write the STL files (``meshes/`` beside the URDF).
 
     Returns:
-        (data file text, URDF text).
+        (data file text, URDF text, ``{STL path relative to the URDF: bytes}``).
     """
-    data_text = model_data_text(model)
+    from .meshes import mesh_sources, stl_name, bone_stl  # noqa: PLC0415
+
+    sources = mesh_sources(model, geometry_dir)
+    meshes = {stl_name(n): bone_stl(src) for n, src in sources.items()}
+    data_text = model_data_text(model, sources)
     atomic_write(Path(data_path), data_text)
     urdf = render_urdf(Path(data_path), name)
+    if write_meshes:
+        for rel, data in meshes.items():
+            atomic_write(Path(urdf_path).parent / rel, data)
     atomic_write(Path(urdf_path), urdf)
-    return data_text, urdf
+    return data_text, urdf, meshes
 
 
-def model_data_text(model: OsimModel) -> str:
+def model_data_text(model: OsimModel, meshes: Iterable[str] = ()) -> str:
     """YAML text of :func:`model_data` with a header naming the source."""
     text = (f"# Generated by pamkin from the OpenSim model {Path(model.path).name} (do not edit;\n"
             "# regenerate with `pamkin urdf`). Model credits are in model.credits.\n")
-    return text + yaml.safe_dump(model_data(model), sort_keys=False, width=120)
+    return text + yaml.safe_dump(model_data(model, meshes), sort_keys=False, width=120)
 
 
 #: The built-in Gait2392 model: project data file and generated URDF.
@@ -214,32 +234,57 @@ GAIT2392_DATA = ROBOT_DIR / "data" / "gait2392.yaml"
 GAIT2392_URDF = URDF_DIR / "gait2392.urdf"
 
 
-def build_gait2392(osim_path: str | os.PathLike, check: bool = False) -> list[Path]:
-    """Regenerate ``robot/data/gait2392.yaml`` and ``urdf/gait2392.urdf`` from an ``.osim``.
+def build_gait2392(osim_path: str | os.PathLike, check: bool = False,
+                   geometry_dir: str | os.PathLike | None = None) -> list[Path]:
+    """Regenerate ``robot/data/gait2392.yaml``, ``urdf/gait2392.urdf``, ``urdf/pam_biped.urdf`` and
+    the bone meshes ``urdf/meshes/*.stl`` from an ``.osim`` and its ``.vtp`` files.
 
     Args:
         osim_path: OpenSim's ``gait2392_thelen2003muscle.osim``.
-        check: Do not write; return the files that are missing or differ (stale).
+        check: Do not write; return the files that are missing, differ (stale) or are left over.
+        geometry_dir: The ``.vtp`` folder (default: found beside the model as OpenSim does).
 
     Returns:
         The files written, or with ``check`` the stale ones.
+
+    Raises:
+        pamkin.errors.DataFileError: The model file or its geometry folder is missing.
     """
+    from .meshes import find_geometry_dir  # noqa: PLC0415
+
+    osim_path = Path(osim_path)
+    if not osim_path.is_file():
+        raise DataFileError(str(osim_path), "file not found (pass the Gait2392 model with --osim FILE; it is in "
+                                            "opensim-models/Gait2392_Simbody/gait2392_thelen2003muscle.osim)")
+    geometry = Path(geometry_dir) if geometry_dir else find_geometry_dir(osim_path)
+    if geometry is None or not geometry.is_dir():
+        raise DataFileError(str(geometry or osim_path.parent / "Geometry"),
+                            "no geometry folder with the model's .vtp bone meshes (pass --geometry DIR)")
     model = load_osim_file(osim_path)
+    old_meshes = set(MESH_DIR.glob("*.stl")) if MESH_DIR.is_dir() else set()
     if not check:
-        build(model, GAIT2392_DATA, GAIT2392_URDF, "gait2392")
+        _, _, meshes = build(model, GAIT2392_DATA, GAIT2392_URDF, "gait2392", geometry)
         atomic_write(ROBOT_URDF, render_robot_urdf())
-        return [GAIT2392_DATA, GAIT2392_URDF, ROBOT_URDF]
+        new = {GAIT2392_URDF.parent / rel for rel in meshes}
+        for f in old_meshes - new:
+            f.unlink()
+        return [GAIT2392_DATA, GAIT2392_URDF, ROBOT_URDF, *sorted(new)]
     import tempfile as _tf  # noqa: PLC0415
 
     with _tf.TemporaryDirectory() as tmp:
-        data_text, urdf = build(model, Path(tmp) / GAIT2392_DATA.name, Path(tmp) / GAIT2392_URDF.name,
-                                "gait2392")
+        data_text, urdf, meshes = build(model, Path(tmp) / GAIT2392_DATA.name, Path(tmp) / GAIT2392_URDF.name,
+                                        "gait2392", geometry, write_meshes=False)
         robot = render_robot_urdf(skeleton_path=Path(tmp) / GAIT2392_DATA.name)
     robot = robot.replace(f"{Path(tmp).name}", "")  # the banner names only file names
     stale = []
     for path, text in ((GAIT2392_DATA, data_text), (GAIT2392_URDF, urdf), (ROBOT_URDF, robot)):
         if not path.exists() or path.read_text() != text:
             stale.append(path)
+    for rel, data in meshes.items():
+        path = GAIT2392_URDF.parent / rel
+        if not path.exists() or path.read_bytes() != data:
+            stale.append(path)
+    stale += sorted(old_meshes - {GAIT2392_URDF.parent / rel for rel in meshes})
     return stale
 
 
@@ -248,21 +293,35 @@ def source_hash() -> str:
     h = hashlib.sha256()
     for p in sorted(ROBOT_DIR.glob("xacro/*.xacro")) + [OSIM_XACRO, Path(__file__),
                                                           Path(__file__).with_name("osim.py"),
-                                                          Path(__file__).with_name("functions.py")]:
+                                                          Path(__file__).with_name("functions.py"),
+                                                          Path(__file__).with_name("meshes.py"),
+                                                          Path(__file__).with_name("vtp.py")]:
         h.update(p.read_bytes())
     return h.hexdigest()[:16]
 
 
-def cached_urdf(model: OsimModel) -> Path:
-    """URDF of an imported model, built in a content-addressed cache folder.
+def cached_urdf(model: OsimModel, geometry_dir: str | os.PathLike | None = None) -> Path:
+    """URDF of an imported model (with its bone meshes), built in a content-addressed cache folder.
 
-    The cache is ``$PAMKIN_CACHE`` or ``~/.cache/pamkin``; entries are keyed by the
-    model file's content and the Xacro sources, so an edited model is rebuilt.
+    The cache is ``$PAMKIN_CACHE`` or ``~/.cache/pamkin``; entries are keyed by the model
+    file's content, the Xacro sources and the mesh files used, so an edited model is rebuilt.
+
+    Args:
+        geometry_dir: Folder of the model's ``.vtp`` meshes (None: a URDF without visuals).
     """
-    h = hashlib.sha256(Path(model.path).read_bytes()).hexdigest()[:16]
-    root = cache_dir()
-    folder = root / f"{h}-{source_hash()}"
+    import warnings  # noqa: PLC0415
+
+    from .meshes import mesh_sources  # noqa: PLC0415
+
+    h = hashlib.sha256(Path(model.path).read_bytes())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")          # warned once, when building
+        sources = mesh_sources(model, geometry_dir)
+    for name, src in sorted(sources.items()):
+        st = src.stat()
+        h.update(f"{name}:{src.resolve()}:{st.st_size}:{st.st_mtime_ns}".encode())
+    folder = cache_dir() / f"{h.hexdigest()[:16]}-{source_hash()}"
     urdf = folder / "model.urdf"
     if not urdf.exists():
-        build(model, folder / "model.yaml", urdf, "model")
+        build(model, folder / "model.yaml", urdf, "model", geometry_dir)
     return urdf
