@@ -58,5 +58,22 @@ class DataFileError(PamkinError):
         super().__init__(f"{self.path}: {message}")
 
 
+class StorageFileError(DataFileError):
+    """An OpenSim storage file (``.mot``/``.sto``) is malformed, or lacks a requested column.
+
+    Attributes:
+        path: The file.
+        column: The offending column, if any.
+    """
+
+    def __init__(self, path: str, message: str, *, column: str | None = None) -> None:
+        self.column = column
+        super().__init__(path, f"column {column!r}: {message}" if column is not None else message)
+
+
+class SolverError(PamkinError):
+    """A numerical solver (e.g. a QP solver) failed on a well-posed problem; names the problem."""
+
+
 class BuildError(PamkinError):
     """Generating a URDF from Xacro sources failed."""
