@@ -17,8 +17,8 @@ def add_parsers(sub) -> None:
                     "the IK frames inside the ID time range) and choose, per frame, pressures in [0, P_max] that "
                     "reproduce the 17 non-pelvis moments: first the least residual (normalised by each "
                     "coordinate's peak moment), then the least effort sum (P/P_max)^2 (two QPs, ProxQP through "
-                    "qpsolvers, warm-started). Reports RMS and max residual per coordinate (N·m and %% of peak), "
-                    "the fraction of frames where every residual is below 5 %% of its peak, pressures per PAM, "
+                    "qpsolvers, warm-started). Reports RMS and max residual per coordinate (N·m and % of peak), "
+                    "the fraction of frames where every residual is below 5 % of its peak, pressures per PAM, "
                     "saturated PAMs, dead zones and supply air per stride. The moments are those of OpenSim's "
                     "scaled subject01 (about 72 kg), used as given.")
     s.add_argument("design", nargs="?", default=None,
@@ -43,6 +43,8 @@ def cmd_gait(args: argparse.Namespace) -> int:
 
     if not 0 < args.tolerance < 100:
         raise ParameterError(f"--tolerance must be a percentage in (0, 100), got {args.tolerance}")
+    if not args.p_max > 0:
+        raise ParameterError(f"--p-max must be a positive pressure [kPa], got {args.p_max}")
     grf = None if str(args.grf).lower() == "none" else args.grf
     plan = gait_plan(args.design, ik=args.ik, id=args.id, grf=grf, p_max=args.p_max * 1e3,
                      tolerance=args.tolerance / 100, solver=args.solver)

@@ -104,7 +104,7 @@ FEASIBLE_TOLERANCE = 0.05
 P_ATM = 101325.0
 #: Vertical ground reaction force [N] above which a foot is in stance.
 STANCE_THRESHOLD_N = 20.0
-_STAGE2_SLACK = 1e-6          # stage 2 keeps every normalised moment within this of stage 1
+_STAGE2_SLACK = 1e-6          # effort QP may move a normalised moment by at most this (else: stage-1 pressures)
 _COS_THETA_STAR = 1.0 / math.sqrt(3.0)
 
 
