@@ -99,6 +99,9 @@ def build_parser() -> argparse.ArgumentParser:
     cli_export.add_parsers(sub)
     cli_visual.add_parsers(sub)
     from . import cli_gait; cli_gait.add_parsers(sub)  # noqa: E702, PLC0415
+    from . import cli_audit  # noqa: PLC0415
+
+    cli_audit.add_parsers(sub)
     return p
 
 

@@ -123,8 +123,12 @@ __all__ = [
     "hunt_pressure",
     "kmax",
     "max_contraction",
+    "kmax_is_measured",
     "max_pretension",
+    "measured_rest_length_range",
     "nominal_length_range",
+    "outer_diameter",
+    "pam_mass",
 ]
 
 Array = Any
@@ -406,6 +410,49 @@ def max_contraction(diameter_mm: int) -> float:
 def nominal_length_range(diameter_mm: int) -> tuple[float, float]:
     """Festo's range of nominal (resting) lengths [m]: (0.04, 9), (0.06, 9), (0.12, 9)."""
     return _data().nominal[check_diameter(diameter_mm)]
+
+
+@functools.lru_cache(maxsize=1)
+def _raw() -> dict:
+    with open(_data_path(), encoding="utf-8") as fh:
+        return json.load(fh)
+
+
+def measured_rest_length_range(diameter_mm: int, model: str = "v3") -> tuple[float, float] | None:
+    """Range of resting lengths [m] the force model was *measured* on (``None``: never measured).
+
+    v3: 10 mm 0.112–0.518 m, 20 mm 0.300–0.509 m (the lab's 537 isometric tests); 40 mm is a fit to
+    Festo MuscleSIM curves, not a measurement. Other models: ``None`` (no measured range recorded).
+    """
+    d = check_diameter(diameter_mm)
+    if _check_model(model) != "v3":
+        return None
+    r = _raw()["v3_measured"]["measured_rest_length_m"][str(d)]
+    return None if r is None else (float(r[0]), float(r[1]))
+
+
+def kmax_is_measured(diameter_mm: int, model: str = "v3") -> bool:
+    """Whether the default kmax of ``diameter_mm`` comes from measurements (10 mm: Hunt's table) or is
+    an assumed constant (20, 40 mm; see the module docstring, decision 5)."""
+    return check_diameter(diameter_mm) == 10
+
+
+def pam_mass(rest_length: Array, diameter_mm: int) -> np.ndarray:
+    """Estimated mass [kg] of one PAM with its fittings: base + per-metre × resting length.
+
+    The numbers are an **assumption** (``festo_catalogue.assumed_mass`` in the data file: no Festo
+    catalogue weights were available), for bulk comparisons between designs.
+    """
+    d = check_diameter(diameter_mm)
+    m = _raw()["festo_catalogue"]["assumed_mass"]
+    return m["base_kg"][str(d)] + m["per_m_kg"][str(d)] * np.asarray(rest_length, float)
+
+
+def outer_diameter(diameter_mm: int) -> float:
+    """Assumed outer diameter [m] of a contracted PAM with fittings (PAM–PAM clearance); an
+    **assumption** (``festo_catalogue.assumed_outer_diameter_mm``)."""
+    d = check_diameter(diameter_mm)
+    return float(_raw()["festo_catalogue"]["assumed_outer_diameter_mm"][str(d)]) / 1000.0
 
 
 # --------------------------------------------------------------------------- formulas (xp)

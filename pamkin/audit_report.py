@@ -1,0 +1,203 @@
+"""Outputs of ``pamkin audit``: the scorecard text, the criteria figure and a meshcat page that
+highlights offending attachment points and route segments."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .urdf_build import atomic_write
+
+
+def _fmt(v, nd: int = 3) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    return f"{v:.{nd}g}"
+
+
+def _limit_text(lim: dict | None) -> str:
+    if not lim:
+        return "(off)"
+    parts = []
+    if "min" in lim:
+        parts.append(f">= {_fmt(lim['min'])}")
+    if "max" in lim:
+        parts.append(f"<= {_fmt(lim['max'])}")
+    return " and ".join(parts)
+
+
+def scorecard_text(res) -> str:
+    """The human-readable scorecard: one row per PAM and one line per criterion (PASS/FAIL)."""
+    thr = res.thresholds
+    s = res.samples
+    lines = [f"pamkin audit of design {res.design!r} ({res.source})",
+             f"held-out samples: {s['random_poses']} random poses (seed {s['random_seed']}, stream {s['random_stream']}, "
+             f"{len(s['random_coordinates'])} right-leg/lumbar coordinates, range of motion {s['rom']}), "
+             f"{s['gait_frames']} walking-trial frames, 1-D sweeps ({s['sweep_points']}) and 2-D grids "
+             f"({s['grid_points_per_axis']}²); bones and PAM-PAM checks on {s['geometry_random_poses']} random poses "
+             "+ the walking trial",
+             "",
+             "Legend: NRMSE = RMS(robot - human) / human peak about the primary coordinate, random poses; "
+             "worst = largest such error over every coordinate crossed (÷ the same peak); dz = dead-zone % of random "
+             "poses/gait frames; bracket = distance of the farthest fixed attachment point from its own bone [mm] "
+             "(negative: inside); seg = deepest route segment into any bone [mm]; 1seg = PAM fits on one straight "
+             "segment; F/rated = peak force per unit / Festo rated force; sens = primary-torque change for a 1 mm "
+             "attachment error [% of human peak]; x = actuators whose PAM bodies it intersects.",
+             "",
+             f"{'id':>3} {'PAM':26s} {'d':>3} {'n':>2} {'NRMSE':>6} {'worst (coordinate)':>28} {'dz%':>9} "
+             f"{'bracket':>8} {'seg':>6} {'1seg':>4} {'F/rated':>7} {'sens%':>6}  x"]
+    for r in res.pams:
+        worst = f"{r['random_worst_coordinate_error']:.3f} ({r['random_worst_coordinate']})"
+        dz = f"{100 * r['random_dead_zone_fraction']:.0f}/{100 * max(r.get('gait_dead_zone_fraction', 0), r.get('gait_dead_zone_fraction_left', 0)):.0f}"
+        br = "-" if r["max_bracket_m"] is None else f"{1000 * r['max_bracket_m']:.1f}"
+        lines.append(f"{r['id']:>3} {r['name'][:26]:26s} {r['diameter_mm']:>3} {r['n_parallel']:>2} "
+                     f"{r['random_nrmse']:>6.3f} {worst:>28} {dz:>9} {br:>8} "
+                     f"{1000 * r['max_segment_penetration_m']:>6.1f} {'yes' if r['on_one_segment'] else 'no':>4} "
+                     f"{r['force_ratio']:>7.2f} {r['sensitivity_pct']:>6.1f}  "
+                     f"{','.join(str(i) for i in r['intersects']) or '-'}")
+    lines += ["", f"{'criterion':42s} {'value':>10} {'limit':>14}  result"]
+    for c in res.criteria:
+        verdict = {True: "pass", False: "FAIL", None: "-"}[c["passed"]]
+        lines.append(f"{c['name']:42s} {_fmt(c['value'], 4):>10} {_limit_text(c['limit']):>14}  {verdict}")
+    sm = res.summary
+    lines += ["", "informational: "
+              f"sweep NRMSE median {_fmt(sm['sweep_nrmse_median'])}, gait NRMSE median {_fmt(sm['gait_nrmse_median'])}, "
+              f"force model extrapolated for {sm['pams_force_model_extrapolated']} PAMs (resting length outside the "
+              f"measured range, or 40 mm), kmax assumed for {sm['pams_kmax_assumed']} (20/40 mm), "
+              f"max bracket {_fmt(1000 * sm['max_bracket_m'])} mm, max force ratio {_fmt(sm['max_force_ratio'])}, "
+              f"total PAM length {_fmt(sm['total_pam_length_m'])} m, air {_fmt(sm['air_volume_l'])} l, "
+              f"mass {_fmt(sm['mass_kg'])} kg (assumed Festo weights)",
+              f"thresholds: {json.dumps(thr)}",
+              f"{'PASSED' if res.passed else 'FAILED'}: {len(res.failed)} of "
+              f"{sum(1 for c in res.criteria if c['passed'] is not None)} limits failed"
+              + (f" ({', '.join(res.failed)})" if res.failed else ""),
+              f"({res.seconds:.0f} s)"]
+    return "\n".join(lines) + "\n"
+
+
+def plot_criteria(res, path: str | os.PathLike) -> Path:
+    """One bar chart per per-PAM criterion with its threshold line; offending PAMs in red."""
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    thr = res.thresholds
+    rows = res.pams
+    ids = [r["id"] for r in rows]
+    panels = [
+        ("primary NRMSE, random poses", [r["random_nrmse"] for r in rows], thr["nrmse_good"], False),
+        ("worst all-coordinate error", [r["random_worst_coordinate_error"] for r in rows],
+         thr["worst_coordinate_error_good"], False),
+        ("dead zone, random / gait [%]", [100 * max(r["random_dead_zone_fraction"], r.get("gait_dead_zone_fraction", 0))
+                                          for r in rows], 0.0, False),
+        ("farthest attachment from own bone [mm]", [1000 * (r["max_bracket_m"] or 0) for r in rows],
+         1000 * thr["bracket_max_m"], False),
+        ("deepest segment into bone [mm]", [1000 * r["max_segment_penetration_m"] for r in rows],
+         1000 * thr["segment_penetration_max_m"], False),
+        ("peak force / Festo rated", [r["force_ratio"] for r in rows], 1.0, False),
+        ("1 mm attachment error [% human peak]", [r["sensitivity_pct"] for r in rows], thr["sensitivity_max_pct"], True),
+        ("intersecting PAMs (count)", [len(r["intersects"]) for r in rows], 0.0, False),
+        ("fits on one segment: margin [mm]", [1000 * r["mount_margin_m"] for r in rows], 0.0, None),
+    ]
+    fig, axes = plt.subplots(3, 3, figsize=(15, 10))
+    for ax, (title, vals, lim, logy) in zip(axes.ravel(), panels):
+        v = np.asarray(vals, float)
+        bad = v < lim if logy is None else v > lim
+        ax.bar(range(len(v)), v, color=np.where(bad, "#d62728", "#2ca02c"))
+        ax.axhline(lim, color="k", lw=1, ls="--")
+        ax.set_title(title, fontsize=10)
+        ax.set_xticks(range(len(v)))
+        ax.set_xticklabels(ids, fontsize=6)
+        if logy:
+            ax.set_yscale("symlog", linthresh=1.0)
+        ax.grid(axis="y", alpha=0.3)
+    fig.suptitle(f"pamkin audit: {res.design}  ({'passed' if res.passed else 'failed: ' + ', '.join(res.failed)})",
+                 fontsize=11)
+    fig.supxlabel("PAM id (red: beyond the threshold, dashed)")
+    fig.tight_layout()
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp.png")
+    fig.savefig(tmp, dpi=80)
+    plt.close(fig)
+    os.replace(tmp, path)
+    return path
+
+
+def audit_view(res, path: str | os.PathLike, geometry_dir: str | None = None) -> Path:
+    """A meshcat page of the design at the default pose on the bone meshes: route segments deeper
+    than the threshold into bone in red (others green), attachment points inside bone or farther
+    than the bracket threshold from their bone as red spheres (others blue)."""
+    import meshcat  # noqa: PLC0415
+    import meshcat.geometry as g  # noqa: PLC0415
+
+    from .bones import BoneSet  # noqa: PLC0415
+    from .robot import PamRobot, robot_skeleton  # noqa: PLC0415
+    from .view import StaticWindow, _frame_camera, _translation  # noqa: PLC0415
+
+    thr = res.thresholds
+    des = res.details["design"]
+    skel = robot_skeleton()
+    robot = PamRobot(des, skel, sides=("r",))
+    q0 = skel.default_q[None, :].copy()
+    q0[0, skel.coordinates.index("pelvis_ty")] = 0.0
+    st = skel.kinematics.forward(q0, warn_range=False)
+    bones = BoneSet(skel, geometry_dir or res.samples.get("geometry_dir"))
+    bad_pts = sum(r["points_inside_own_bone"] + r["points_over_bracket"] for r in res.pams)
+    bad_seg = res.summary["segments_over_2mm"]
+    header = (f"<b>pamkin audit: {res.design}</b> &nbsp; red segments: deeper than "
+              f"{1000 * thr['segment_penetration_max_m']:.0f} mm into bone at some pose ({bad_seg}); red points: inside "
+              f"their bone or farther than {1000 * thr['bracket_max_m']:.0f} mm from it ({bad_pts}); default pose")
+    vis = meshcat.Visualizer(window=StaticWindow(f"pamkin audit {res.design}", header))
+    vis["/Grid"].set_property("visible", False)
+    allpts = []
+    for body in bones.bodies:
+        if body.endswith("_l"):
+            continue
+        b = skel.bodies.index(body)
+        T = np.eye(4)
+        T[:3, :3] = st.body_R[0, b]
+        T[:3, 3] = st.body_p[0, b]
+        for i, m in enumerate(bones.meshes[body]):
+            vis[f"pamkin/bones/{body}/{i}"].set_object(
+                g.TriangularMeshGeometry(m.vertices, m.faces),
+                g.MeshLambertMaterial(color=0xE8E0D0, opacity=0.55, transparent=True))
+            vis[f"pamkin/bones/{body}/{i}"].set_transform(T)
+            allpts.append((T[:3, :3] @ m.vertices[::20].T).T + T[:3, 3])
+    X, _ = robot.paths.point_positions(st)
+    for k, (pam, row) in enumerate(zip(des.pams, res.pams)):
+        a = robot.paths._path_start[k]
+        for j, seg in enumerate(row["segments"]):
+            A, B = X[0, a + j], X[0, a + j + 1]
+            L = float(np.linalg.norm(B - A))
+            if L < 1e-9:
+                continue
+            bad = seg["penetration_m"] > thr["segment_penetration_max_m"]
+            y = (B - A) / L
+            x = np.cross(y, [0.0, 0.0, 1.0]) if abs(y[2]) < 0.9 else np.cross(y, [1.0, 0.0, 0.0])
+            x /= np.linalg.norm(x)
+            T = np.eye(4)
+            T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, y, np.cross(x, y), 0.5 * (A + B)
+            node = f"pamkin/pams/{pam.key}/s{j}"
+            vis[node].set_object(g.Cylinder(L, 0.004 if bad else 0.0025),
+                                 g.MeshLambertMaterial(color=0xD62728 if bad else 0x2CA02C))
+            vis[node].set_transform(T)
+        for i, p in enumerate(row["points"]):
+            own = p["own_bone_distance_m"]
+            bad = own is not None and (own < 0 or own > thr["bracket_max_m"])
+            node = f"pamkin/points/{pam.key}/p{i}"
+            vis[node].set_object(g.Sphere(0.008 if bad else 0.005),
+                                 g.MeshLambertMaterial(color=0xD62728 if bad else 0x1F77B4))
+            vis[node].set_transform(_translation(X[0, a + i]))
+            allpts.append(X[0, a + i][None])
+    _frame_camera(vis, np.vstack(allpts))
+    path = Path(path)
+    atomic_write(path, vis.static_html())
+    return path

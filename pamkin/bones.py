@@ -1,0 +1,223 @@
+"""Bone geometry: the model's bone meshes and signed distances to them.
+
+Every mesh the model names (OpenSim ``<Mesh>`` geometry, with its scale factors and frame) is
+read from the model's Geometry folder (:func:`pamkin.vtp.body_meshes`) and kept in its body's
+frame. Signed distances use libigl's ``signed_distance`` with the *fast winding number* sign
+(robust for the open meshes Gait2392 ships: half pelvis, foot, spine), **negative inside bone**.
+The distance to a body's bone is the minimum over that body's meshes (the union of them).
+
+Distances between PAM bodies (capsules) use coal (hpp-fcl), Pinocchio's collision library.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import DataFileError
+
+from ._resources import DEFAULT_GEOMETRY
+
+
+def find_geometry_dir(model, geometry_dir: str | os.PathLike | None = None) -> Path:
+    """The folder holding a model's ``.vtp`` bone meshes.
+
+    Search order: ``geometry_dir``; ``$PAMKIN_GEOMETRY``; ``Geometry`` beside the model file and
+    one level up (as OpenSim looks for it, and as opensim-models lays it out); the reference
+    data folder ``../shared/opensim-models/Geometry`` of a checkout (the built-in Gait2392).
+
+    Raises:
+        DataFileError: No folder holds the first mesh the model names.
+    """
+    names = [g.mesh_file for b in model.osim.bodies for g in b.meshes]
+    if geometry_dir is not None:
+        cands = [Path(geometry_dir)]
+    else:
+        cands = []
+        if os.environ.get("PAMKIN_GEOMETRY"):
+            cands.append(Path(os.environ["PAMKIN_GEOMETRY"]))
+        src = Path(str(model.osim.path))
+        cands += [src.parent / "Geometry", src.parent, src.parent.parent / "Geometry", DEFAULT_GEOMETRY]
+        if getattr(model.osim, "source_osim", None):
+            s = Path(model.osim.source_osim)
+            cands = [s.parent / "Geometry", s.parent.parent / "Geometry", *cands]
+    for c in cands:
+        if c.is_dir() and (not names or (c / names[0]).is_file()):
+            return c
+    raise DataFileError(str(cands[0]) if cands else "<geometry>",
+                        f"no folder with the model's bone meshes ({names[:3]}...) among "
+                        f"{[str(c) for c in cands]}; give --geometry DIR (OpenSim's Geometry folder) "
+                        "or set $PAMKIN_GEOMETRY")
+
+
+@dataclass(frozen=True)
+class BoneMesh:
+    """One body's bone surface: vertices (V, 3) [m] in the body frame, triangles (F, 3)."""
+
+    body: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    files: tuple[str, ...]
+
+
+class BoneSet:
+    """The bone meshes of a model, per body, with signed-distance queries.
+
+    Args:
+        model: A :class:`pamkin.Model` (its ``osim`` names the meshes).
+        geometry_dir: Folder of the ``.vtp`` files (default: :func:`find_geometry_dir`).
+    """
+
+    def __init__(self, model, geometry_dir: str | os.PathLike | None = None) -> None:
+        from .vtp import MeshWarning, body_meshes  # noqa: PLC0415
+
+        self.geometry_dir = find_geometry_dir(model, geometry_dir)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", MeshWarning)
+            meshes = body_meshes(model, self.geometry_dir)
+        self.model = model
+        self.meshes: dict[str, list[BoneMesh]] = {}
+        for body, ms in meshes.items():
+            files = [g.mesh_file for b in model.osim.bodies if b.name == body for g in b.meshes]
+            self.meshes[body] = [BoneMesh(body, np.ascontiguousarray(m.vertices, dtype=np.float64),
+                                          np.ascontiguousarray(m.faces, dtype=np.int64), (f,))
+                                 for m, f in zip(ms, files)]
+        self.bodies = [b for b, ms in self.meshes.items() if ms]
+        self._box = {b: (np.min([m.vertices.min(0) for m in ms], axis=0), np.max([m.vertices.max(0) for m in ms], axis=0))
+                     for b, ms in self.meshes.items() if ms}
+
+    def body_signed_distance(self, body: str, points: np.ndarray) -> np.ndarray:
+        """Signed distance [m] of points given in ``body``'s frame to that body's bone (negative inside).
+
+        Args:
+            body: Body name.
+            points: (K, 3) in the body frame [m].
+
+        Returns:
+            (K,) distances; ``+inf`` for a body without meshes.
+        """
+        import igl  # noqa: PLC0415
+
+        P = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+        out = np.full(len(P), np.inf)
+        if len(P) == 0:
+            return out
+        for m in self.meshes.get(body, []):
+            s = igl.signed_distance(P, m.vertices, m.faces,
+                                    sign_type=igl.SIGNED_DISTANCE_TYPE_FAST_WINDING_NUMBER)[0]
+            out = np.minimum(out, s)
+        return out
+
+    def signed_distance(self, state, points: np.ndarray, margin: float = 0.0,
+                        bodies: list[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distance of world points to every bone, posed by a kinematics state.
+
+        Args:
+            state: :class:`pamkin.kinematics.KinematicsState` of S configurations.
+            points: (S, K, 3) world positions [m] (one set per configuration).
+            margin: Points farther than ``margin`` from a bone's bounding box are not queried
+                for that bone (their distance is reported as +inf when no bone is near): use it
+                when only penetrations or near contacts matter. ``None``: query every bone.
+            bodies: Bones to test (default: all).
+
+        Returns:
+            ``(d, nearest)``: (S, K) signed distances [m] (negative inside bone) and (S, K)
+            index into :attr:`bodies` of the nearest bone (-1 where none was queried).
+        """
+        X = np.asarray(points, float)
+        S, K = X.shape[:2]
+        d = np.full((S, K), np.inf)
+        near = np.full((S, K), -1, dtype=int)
+        names = self.model.bodies
+        for bi, body in enumerate(self.bodies):
+            if bodies is not None and body not in bodies:
+                continue
+            b = names.index(body)
+            R = state.body_R[:, b]
+            p = state.body_p[:, b]
+            local = np.einsum("sji,skj->ski", R, X - p[:, None, :])  # R^T (x - p)
+            if margin is None:
+                mask = np.ones((S, K), dtype=bool)
+            else:
+                lo, hi = self._box[body]
+                mask = np.all((local >= lo - margin) & (local <= hi + margin), axis=2)
+            if not mask.any():
+                continue
+            s = self.body_signed_distance(body, local[mask])
+            cur = d[mask]
+            better = s < cur
+            cur[better] = s[better]
+            d[mask] = cur
+            nb = near[mask]
+            nb[better] = bi
+            near[mask] = nb
+        return d, near
+
+
+def capsule_distance(a0: np.ndarray, a1: np.ndarray, ra: float, b0: np.ndarray, b1: np.ndarray, rb: float) -> float:
+    """Signed distance [m] between two capsules (segment a0–a1 of radius ra, b0–b1 of radius rb),
+    negative when they overlap (coal/hpp-fcl)."""
+    import coal  # noqa: PLC0415
+
+    def shape(p, q, r):
+        p = np.asarray(p, float)
+        q = np.asarray(q, float)
+        v = q - p
+        L = float(np.linalg.norm(v))
+        T = coal.Transform3s()
+        T.setTranslation(0.5 * (p + q))
+        if L > 1e-12:
+            z = v / L
+            T.setRotation(_rotation_to_z(z))
+        return coal.Capsule(max(r, 1e-9), L), T
+
+    ca, Ta = shape(a0, a1, ra)
+    cb, Tb = shape(b0, b1, rb)
+    res = coal.DistanceResult()
+    return float(coal.distance(ca, Ta, cb, Tb, coal.DistanceRequest(), res))
+
+
+def _rotation_to_z(z: np.ndarray) -> np.ndarray:
+    """A rotation matrix whose third column is the unit vector ``z``."""
+    a = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(a, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return np.column_stack([x, y, z])
+
+
+def capsule_pair_overlap(A: np.ndarray, B: np.ndarray, ra: float, C: np.ndarray, D: np.ndarray, rb: float,
+                         tolerance: float = 1e-4) -> tuple[float, int]:
+    """Whether two moving capsules (segments A–B and C–D per sample, radii ra, rb) overlap at some sample.
+
+    Samples whose axis-aligned bounding boxes (grown by the radii) are apart cannot overlap and
+    are not passed to coal; the others are checked with coal in order of that lower bound, and
+    the search stops at the first overlap deeper than ``tolerance``.
+
+    Args:
+        A, B, C, D: (S, 3) segment ends per sample [m].
+        ra, rb: Radii [m].
+        tolerance: Overlap that counts [m].
+
+    Returns:
+        ``(distance, sample)``: the signed distance [m] at the first overlapping sample found
+        (≤ −tolerance), else the smallest distance of the samples checked (``+inf``, -1 when the
+        boxes never meet).
+    """
+    lo1, hi1 = np.minimum(A, B), np.maximum(A, B)
+    lo2, hi2 = np.minimum(C, D), np.maximum(C, D)
+    gap = np.maximum(0.0, np.maximum(lo2 - hi1, lo1 - hi2))
+    bound = np.linalg.norm(gap, axis=1) - ra - rb
+    cand = np.flatnonzero(bound < -tolerance)
+    best, arg = np.inf, -1
+    for s in cand[np.argsort(bound[cand])]:
+        dist = capsule_distance(A[s], B[s], ra, C[s], D[s], rb)
+        if dist < best:
+            best, arg = dist, int(s)
+        if dist < -tolerance:
+            break
+    return best, arg

@@ -1,0 +1,93 @@
+"""``pamkin audit``: the scorecard of a design on held-out samples (exit 1 when a limit fails)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+
+def add_parsers(sub) -> None:
+    from .audit import GAIT_IK, LIMITS_FILE  # noqa: PLC0415
+
+    s = sub.add_parser(
+        "audit", help="measure what a design is really worth: held-out poses, every coordinate, bones, buildability",
+        description="Audit a design on samples no optimiser trains on: 2000 seeded random poses of every right-leg "
+                    "and lumbar coordinate within the design's range of motion, every frame of a walking trial, and "
+                    "the 1-D sweeps / 2-D grids. Measures each PAM's torque about every coordinate it crosses against "
+                    "its human muscles (Gait2392, full activation), dead zones, attachment points and route segments "
+                    "against the real bone meshes (signed distances, libigl), PAM-PAM clearance (coal), whether each "
+                    "PAM fits on one straight segment, forces against Festo's ratings, the sensitivity to a 1 mm "
+                    "attachment error, bulk (count, length, air, assumed mass) and the gait pressure plan's "
+                    "feasible-frame fraction (pamkin gait). Prints a scorecard; exits 1 when a limit fails "
+                    f"(limits: {LIMITS_FILE}), 2 on bad input.")
+    s.add_argument("design", nargs="?", default=None,
+                   help="design file, a `pamkin optimize` run folder, or 'thesis' (default: the robot's design "
+                        "robot/data/pam_biped.yaml)")
+    s.add_argument("--json", action="store_true", help="print one JSON object (pams, summary, criteria)")
+    s.add_argument("--out", help="folder for audit.json, scorecard.txt, criteria.png and view.html")
+    s.add_argument("--quick", action="store_true",
+                   help="fewer samples (500 random poses, 150 of them for bone/PAM geometry, every 3rd gait frame, "
+                        "4 mm segment steps, 21-point sweeps); default: 2000 poses, 1000 for geometry, every frame, "
+                        "2 mm steps, 41-point sweeps")
+    s.add_argument("--limits", help=f"YAML file overriding thresholds/limits (default: {LIMITS_FILE})")
+    s.add_argument("--seed", type=int, default=0, help="seed of the random poses (default 0)")
+    s.add_argument("--random", type=int, default=None, metavar="N",
+                   help="number of random poses (default 2000; 500 with --quick)")
+    s.add_argument("--ik", default=str(GAIT_IK),
+                   help="walking trial IK angles .mot ('none': no gait samples; default: the shared subject01 trial)")
+    s.add_argument("--geometry", help="folder of the model's .vtp bone meshes (default: found beside the model, "
+                                      "$PAMKIN_GEOMETRY, or ../shared/opensim-models/Geometry)")
+    s.add_argument("--no-gait-plan", action="store_true",
+                   help="skip the gait pressure plan (its feasible-frame fraction then shows '-')")
+    s.add_argument("--screenshot", action="store_true",
+                   help="with --out: also render view.html to view.png with headless Chromium")
+    s.set_defaults(func=cmd_audit)
+
+
+def cmd_audit(args: argparse.Namespace) -> int:
+    from pathlib import Path  # noqa: PLC0415
+
+    from .audit import AuditOptions, audit_design, load_limits  # noqa: PLC0415
+    from .audit_report import audit_view, plot_criteria, scorecard_text  # noqa: PLC0415
+    from .errors import ConfigurationError  # noqa: PLC0415
+    from .urdf_build import atomic_write  # noqa: PLC0415
+
+    if args.random is not None and args.random < 1:
+        raise ConfigurationError(f"--random must be >= 1, got {args.random}")
+    ik = None if str(args.ik).lower() == "none" else args.ik
+    kw = {"seed": args.seed, "gait_ik": ik, "geometry_dir": args.geometry, "gait_plan": not args.no_gait_plan}
+    if args.random is not None:
+        kw["n_random"] = args.random
+    opt = AuditOptions.quick(**kw) if args.quick else AuditOptions(**kw)
+    limits = load_limits(args.limits)
+
+    def progress(msg: str) -> None:
+        if not args.json:
+            print(f"  audit: {msg}", file=sys.stderr, flush=True)
+
+    res = audit_design(args.design, options=opt, limits=limits, progress=progress)
+    text = scorecard_text(res)
+    written = []
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        atomic_write(out / "audit.json", json.dumps(res.to_dict(), indent=1, default=float))
+        atomic_write(out / "scorecard.txt", text)
+        written += [out / "audit.json", out / "scorecard.txt", plot_criteria(res, out / "criteria.png"),
+                    audit_view(res, out / "view.html", args.geometry)]
+        if args.screenshot:
+            from .view import screenshot  # noqa: PLC0415
+
+            written.append(screenshot(out / "view.html", out / "view.png"))
+    if args.json:
+        d = res.to_dict()
+        d["written"] = [str(w) for w in written]
+        print(json.dumps(d, indent=1, default=float))
+    else:
+        print(text, end="")
+        for w in written:
+            print(f"wrote {w}")
+        if not res.passed:
+            print("next: fix the failed criteria (pamkin optimize, or edit the design) and re-run pamkin audit")
+    return 0 if res.passed else 1
