@@ -55,8 +55,12 @@ def bone_clearance(robot: PamRobot, k: int, q: np.ndarray) -> float:
     return best
 
 
-def summarize(seed: Design, new: Design, results, cfg) -> dict:
-    """Per-actuator metrics of the optimised design (numpy pipeline) and the CasADi agreement check."""
+def summarize(seed: Design, new: Design, results, cfg, progress=None) -> dict:
+    """Per-actuator metrics of the optimised design (numpy pipeline) and the CasADi agreement check.
+
+    Args:
+        progress: Called as ``progress(done, total, actuator_id, name)`` after each actuator.
+    """
     import pamkin  # noqa: PLC0415
 
     human = pamkin.gait2392()
@@ -95,6 +99,8 @@ def summarize(seed: Design, new: Design, results, cfg) -> dict:
             "casadi_numpy_max_torque_diff_Nm": diff,
             "nrmse_optimisation_samples": {k_: round(v, 5) for k_, v in r.nrmse_samples.items()},
         })
+        if progress is not None:
+            progress(len(rows), len(results), r.id, r.name)
     e_b = np.array([x["nrmse_before"] for x in rows])
     e_a = np.array([x["nrmse_after"] for x in rows])
     return {

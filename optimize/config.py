@@ -39,6 +39,8 @@ Example (every key optional; these are the defaults)::
 
 from __future__ import annotations
 
+import math
+import re
 import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -54,6 +56,14 @@ _SECTIONS = {
                "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths",
                "move_moving_points": "move_moving_points"},
 }
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
 
 @dataclass
@@ -89,28 +99,90 @@ class RunConfig:
     source: str = ""
 
     def validate(self) -> None:
-        """Raise :class:`DataFileError` naming the bad key."""
-        def bad(msg: str) -> DataFileError:
-            return DataFileError(self.source or "<config>", msg)
-        if any(d not in (10, 20, 40) for d in self.diameters_mm) or not self.diameters_mm:
-            raise bad(f"diameters_mm must be a non-empty subset of [10, 20, 40], got {self.diameters_mm}")
+        """Check every value's type and range; raise :class:`DataFileError` naming the file and key.
+
+        Also checks values set after loading (command-line overrides).
+        """
+        def bad(key: str, msg: str) -> DataFileError:
+            return DataFileError(self.source or "<config>", f"{key}: {msg}")
+
+        for f in fields(self):
+            if f.name in ("source", "regions"):
+                continue
+            key, value = _KEYS[f.name], getattr(self, f.name)
+            kind = _KINDS[f.name]
+            if kind == "int" and not _is_int(value):
+                raise bad(key, f"must be an integer, got {value!r}")
+            if kind == "float" and not _is_number(value):
+                raise bad(key, f"must be a finite number, got {value!r}")
+            if kind == "bool" and not isinstance(value, bool):
+                raise bad(key, f"must be true or false, got {value!r}")
+            if kind == "str" and not isinstance(value, str):
+                raise bad(key, f"must be a string, got {value!r}")
+            if kind == "list[int]" and not (isinstance(value, list) and all(_is_int(v) for v in value)):
+                raise bad(key, f"must be a list of integers, e.g. [1, 2], got {value!r}")
+        if not self.diameters_mm or any(d not in (10, 20, 40) for d in self.diameters_mm) \
+                or len(set(self.diameters_mm)) != len(self.diameters_mm):
+            raise bad("diameters_mm", f"must be a non-empty subset of [10, 20, 40] [mm], got {self.diameters_mm}")
+        if any(a < 1 for a in self.actuators) or len(set(self.actuators)) != len(self.actuators):
+            raise bad("actuators", f"must be distinct actuator ids >= 1, got {self.actuators}")
+        if not 1e5 <= self.pressure_Pa <= 8e5:
+            raise bad("pressure_Pa", f"must lie in [100000, 800000] Pa (e.g. 620000 for 6.2 bar), got "
+                                     f"{self.pressure_Pa:g}")
+        if self.force_model not in ("v3", "v0"):
+            raise bad("force_model", f"must be 'v3' (the lab's measured model) or 'v0' (the thesis table), got "
+                                     f"{self.force_model!r}")
+        if self.force_model == "v0" and self.pressure_Pa != 620e3:
+            raise bad("force_model", "'v0' is the thesis's 620 kPa table: pressure_Pa must be 620000")
         if not 1 <= self.max_parallel <= 3:
-            raise bad("max_parallel must be 1, 2 or 3")
+            raise bad("max_parallel", f"must be 1, 2 or 3, got {self.max_parallel}")
         for name in ("n_primary", "n_secondary", "n_constraint"):
-            if getattr(self, name) < 2:
-                raise bad(f"samples: {name.removeprefix('n_')} must be >= 2")
-        if self.pressure_Pa <= 0:
-            raise bad("pressure_Pa must be positive")
-        if self.region_m < 0 or self.min_point_distance_m < 0:
-            raise bad("limits: region_m and min_point_distance_m must be >= 0")
-        if self.kmax_scale <= 0 or self.pretension_scale < 0:
-            raise bad("limits: kmax_scale must be > 0 and pretension_scale >= 0")
-        if self.workers < 1 or self.multistart < 0 or self.max_iter < 1:
-            raise bad("workers >= 1, multistart >= 0, max_iter >= 1")
+            if not 2 <= getattr(self, name) <= 201:
+                raise bad(_KEYS[name], f"must be >= 2 and <= 201 samples, got {getattr(self, name)}")
+        for name in ("multistart", "seed", "multistart_threshold", "weight_primary", "weight_secondary",
+                     "regularization", "region_m", "min_point_distance_m", "pretension_scale"):
+            if getattr(self, name) < 0:
+                raise bad(_KEYS[name], f"must be >= 0, got {getattr(self, name)}")
+        if self.weight_primary + self.weight_secondary <= 0:
+            raise bad("weights", "primary and secondary must not both be 0 (nothing to fit)")
+        if not 0 < self.kmax_scale <= 1:
+            raise bad("limits.kmax_scale", f"must lie in (0, 1], got {self.kmax_scale}")
+        if self.pretension_scale > 1:
+            raise bad("limits.pretension_scale", f"must lie in [0, 1], got {self.pretension_scale}")
+        if self.workers < 1:
+            raise bad("workers", f"must be >= 1, got {self.workers}")
+        if self.max_iter < 1:
+            raise bad("max_iter", f"must be >= 1, got {self.max_iter}")
+        if not isinstance(self.regions, dict):
+            raise bad("regions", "must be a table")
         for key, v in self.regions.items():
+            if not re.fullmatch(r"[0-9]+(\.[A-Za-z0-9_]+)?", str(key)):
+                raise bad(f"regions.{key}", "keys are an actuator id (\"6\") or actuator.point (\"6.p2\")")
             vals = v if isinstance(v, list) else [v]
-            if len(vals) not in (1, 3) or any((not isinstance(x, int | float)) or x < 0 for x in vals):
-                raise bad(f"regions.{key}: a non-negative number or 3 numbers [m]")
+            if len(vals) not in (1, 3) or any(not _is_number(x) or x < 0 for x in vals) \
+                    or (isinstance(v, list) and len(vals) != 3):
+                raise bad(f"regions.{key}", f"a non-negative number or 3 non-negative numbers [m], got {v!r}")
+
+    def check_design(self, design) -> None:
+        """Check actuator ids and region keys against the seed design's actuators and route points.
+
+        Raises:
+            DataFileError: naming the file and the key that names no actuator or point.
+        """
+        pams = {p.id: p for p in design.pams}
+        unknown = [a for a in self.actuators if a not in pams]
+        if unknown:
+            raise DataFileError(self.source or "<config>", f"actuators: unknown actuator id(s) {unknown}; the "
+                                                           f"design {design.name!r} has {sorted(pams)}")
+        for key in self.regions:
+            aid, _, point = str(key).partition(".")
+            if int(aid) not in pams:
+                raise DataFileError(self.source or "<config>", f"regions.{key}: names no actuator of the design "
+                                                               f"{design.name!r} (ids {sorted(pams)})")
+            names = [p.name for p in pams[int(aid)].points]
+            if point and point not in names:
+                raise DataFileError(self.source or "<config>", f"regions.{key}: actuator {aid} has no point "
+                                                               f"{point!r} (points: {names})")
 
     def region(self, actuator: int, point: str) -> list[float]:
         """Half-widths (x, y, z) [m] of a route point's box."""
@@ -121,8 +193,18 @@ class RunConfig:
         return [self.region_m] * 3
 
 
+#: TOML key of every field, as an error names it (``weights.primary``, ``pressure_Pa``).
+_KEYS = {attr: f"{sec}.{key}" for sec, keys in _SECTIONS.items() for key, attr in keys.items()}
+#: Expected type of every field.
+_KINDS: dict[str, str] = {}
+for _f in fields(RunConfig):
+    _KEYS.setdefault(_f.name, _f.name)
+    _KINDS[_f.name] = {"str": "str", "int": "int", "float": "float", "bool": "bool",
+                       "list[int]": "list[int]"}.get(str(_f.type), "other")
+
+
 def load_config(path: str | Path | None) -> RunConfig:
-    """Read a TOML run description (None: all defaults)."""
+    """Read a TOML run description (None: all defaults); every value is checked (:meth:`RunConfig.validate`)."""
     if path is None:
         cfg = RunConfig()
         cfg.validate()
@@ -145,6 +227,8 @@ def load_config(path: str | Path | None) -> RunConfig:
                     raise DataFileError(str(path), f"unknown key {key}.{k}; known: {sorted(_SECTIONS[key])}")
                 kwargs[_SECTIONS[key][k]] = v
         elif key == "regions":
+            if not isinstance(value, dict):
+                raise DataFileError(str(path), "[regions] must be a table")
             kwargs["regions"] = dict(value)
         elif key in top:
             kwargs[key] = value

@@ -150,8 +150,15 @@ def shift_moving_point(pt, offset):
 def _progress(done: int, total: int, r: ActuatorResult, stream) -> None:
     bar = "#" * int(30 * done / total)
     e = next(iter(r.nrmse_samples.values()), float("nan"))
-    print(f"\r[{bar:30s}] {done}/{total}  actuator {r.id:2d} {r.name[:24]:24s} "
-          f"{'ok ' if r.success else 'FAIL'} nrmse {e:.3f} ({r.seconds:.1f} s)", file=stream, end="\n", flush=True)
+    print(f"solve [{bar:30s}] {done:2d}/{total}  {r.id:2d} {r.name:26s} {'ok  ' if r.success else 'FAIL'} "
+          f"fit NRMSE {e:.3f} ({r.seconds:.1f} s)", file=stream, flush=True)
+
+
+def _check_progress(stream):
+    def report(done: int, total: int, aid: int, name: str) -> None:
+        bar = "#" * int(30 * done / total)
+        print(f"check [{bar:30s}] {done:2d}/{total}  {aid:2d} {name}", file=stream, flush=True)
+    return report
 
 
 def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[ActuatorResult]:
@@ -196,26 +203,38 @@ def check_results(results: list[ActuatorResult]) -> None:
         raise InfeasibleError("infeasible: " + " | ".join(lines))
 
 
-def apply_design(design: Design, design_path: Path | None = None, urdf_path: Path | None = None) -> None:
+def apply_design(design: Design, design_path: Path | None = None, urdf_path: Path | None = None,
+                 run_folder: str | os.PathLike | None = None) -> None:
     """Write a design into the robot data and regenerate its URDF (each file atomically).
 
     The URDF is rendered from a temporary copy first, so a failure leaves both files unchanged.
-    Defaults: ``robot/data/pam_biped.yaml`` and ``urdf/pam_biped.urdf``.
+    Defaults: ``robot/data/pam_biped.yaml`` and ``urdf/pam_biped.urdf``. ``run_folder`` is named in
+    the design file's header.
     """
     import tempfile  # noqa: PLC0415
 
     design_path = Path(design_path or ROBOT_DESIGN)
     urdf_path = Path(urdf_path or ROBOT_URDF)
+    header = _HEADER if run_folder is None else _HEADER.replace(
+        "--apply`;", f"--apply` from the run folder {Path(run_folder).name};")
     with tempfile.TemporaryDirectory() as tmp:
         tmp_design = Path(tmp) / Path(design_path).name
-        save_design(design, tmp_design, _HEADER)
+        save_design(design, tmp_design, header)
         urdf = render_robot_urdf(design_path=tmp_design).replace(str(Path(tmp)), "")
-    save_design(design, design_path, _HEADER)
+    save_design(design, design_path, header)
     atomic_write(urdf_path, urdf)
 
 
 _HEADER = ("# The PAM robot's design (right side; the left side is the mirror image).\n"
            "# Written by `pamkin optimize --apply`; format: pamkin.design.\n")
+
+
+def _run_header(out_dir: Path, cfg: RunConfig) -> str:
+    """Header of a run folder's design.yaml: which command wrote it, from which config."""
+    return ("# An optimised PAM design (right side; the left side is the mirror image).\n"
+            f"# Written by `pamkin optimize` into the run folder {Path(out_dir).name} "
+            f"(config: {Path(cfg.source).name if cfg.source else 'defaults'}); format: pamkin.design.\n"
+            "# Not applied to the robot: `pamkin optimize --apply` (or --warm-start this folder) does that.\n")
 
 
 def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -> dict:
@@ -238,6 +257,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         for p in warm.pams:
             if p.id in {q.id for q in seed.pams}:
                 seed = seed.replace_pam(p)
+    cfg.check_design(seed)
     seed = Design(seed.name, seed.pams, cfg.pressure_Pa, cfg.force_model, seed.fitting_length_m, seed.rom,
                   seed.description, seed.path, dict(seed.extra))
     out_dir = Path(out_dir)
@@ -256,10 +276,11 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         log.append(f"actuator {r.id} {r.name}: {r.status} in {r.seconds:.1f} s; attempts: " +
                    "; ".join(f"{a['diameter_mm']} mm x{a['n_parallel']} {a['start']}: {a['status']} "
                              f"J={a['objective']:.4g}" for a in r.attempts))
-    summary = summarize(seed, new, results, cfg)
+    print("solving done; checking every actuator on dense grids (numpy pipeline) ...", file=stream, flush=True)
+    summary = summarize(seed, new, results, cfg, progress=_check_progress(stream))
     summary["solve_seconds"] = round(solve_seconds, 1)
     summary["total_seconds"] = round(time.perf_counter() - t0, 1)
-    save_design(new, out_dir / "design.yaml", _HEADER)
+    save_design(new, out_dir / "design.yaml", _run_header(out_dir, cfg))
     atomic_write(out_dir / "summary.json", json.dumps(summary, indent=2))
     before_after_plot(seed, new, out_dir / "before_after.png")
     log.append(f"total {summary['total_seconds']} s (solves {solve_seconds:.1f} s)")
@@ -271,7 +292,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         atomic_write(out_dir / "summary.json", json.dumps(summary, indent=2))
         raise
     if apply:
-        apply_design(new)
+        apply_design(new, run_folder=out_dir)
         summary["applied"] = True
         atomic_write(out_dir / "summary.json", json.dumps(summary, indent=2))
     return summary

@@ -55,10 +55,25 @@ def cmd_info(args: argparse.Namespace) -> int:
         return 0
     print(f"{info['model']} ({info['source']})")
     print(f"{len(model.bodies)} bodies: {', '.join(model.bodies)}")
-    print(f"{len(model.coordinates)} coordinates:")
+    print(f"{len(model.coordinates)} coordinates (range; rotations in degrees, translations in metres):")
     for c, (lo, hi) in info["coordinates"].items():
-        print(f"  {c:20s} [{lo: .4f}, {hi: .4f}]")
-    print(f"{len(model.muscles)} muscles, {info['spanned_pairs']} muscle-coordinate pairs with a moment arm")
+        if model.osim.coordinate(c).rotational:
+            print(f"  {c:20s} [{np.degrees(lo):8.1f}, {np.degrees(hi):8.1f}] deg")
+        else:
+            print(f"  {c:20s} [{lo:8.3f}, {hi:8.3f}] m")
+    spans: dict[int, list[str]] = {}
+    for m, c in model.paths.pairs.tolist():
+        spans.setdefault(m, []).append(model.coordinates[c])
+    print(f"{len(model.muscles)} muscles ({info['spanned_pairs']} muscle-coordinate pairs with a moment arm): "
+          "name, kind, max isometric force [N], optimal fibre length [m], tendon slack length [m], "
+          "coordinates spanned")
+    kw = max([len(m.kind) for m in model.osim.muscles] + [4])
+    for i, m in enumerate(model.osim.muscles):
+        p = m.params
+        num = " ".join(f"{p[k]:8.4g}" if k in p else f"{'-':>8}"
+                       for k in ("max_isometric_force", "optimal_fiber_length", "tendon_slack_length"))
+        print(f"  {m.name:16s} {m.kind:{kw}s} {num}  {', '.join(spans.get(i, []))}")
+    print("JSON (--json): coordinate ranges in radians / metres, as OpenSim stores them")
     return 0
 
 
@@ -66,7 +81,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="pamkin",
         description="Design PAM-actuated bipedal robots against OpenSim's Gait2392 human model. "
-                    "Without --osim, commands use the built-in Gait2392 data (robot/data, urdf/).")
+                    "Without --osim, commands use the built-in Gait2392 data (installed with pamkin). "
+                    "Run 'pamkin COMMAND --help' for a command's options and defaults.")
+    p.add_argument("--version", action="version", version=f"pamkin {_version()}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     s = sub.add_parser("urdf", help="regenerate the built-in data, bone meshes and URDFs from Gait2392's .osim",
@@ -79,12 +96,16 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--geometry", metavar="DIR",
                    help="folder of the .vtp bone meshes (default: Geometry/ beside the model, its folder or "
                         "../Geometry, as OpenSim looks)")
-    s.add_argument("--check", action="store_true", help="write nothing; exit 1 if the files are stale")
+    s.add_argument("--check", action="store_true",
+                   help="write nothing; exit 1 if the files are stale (default: regenerate them)")
     s.set_defaults(func=cmd_urdf)
 
-    s = sub.add_parser("info", help="list a model's bodies, coordinates and muscles")
-    s.add_argument("--osim", help="an .osim file (default: built-in Gait2392)")
-    s.add_argument("--json", action="store_true", help="machine-readable output")
+    s = sub.add_parser("info", help="list a model's bodies, coordinates (with units) and muscles",
+                       description="List a model's bodies, its coordinates with their ranges (degrees for "
+                                   "rotations, metres for translations) and its muscles with their main "
+                                   "parameters and the coordinates they span.")
+    s.add_argument("--osim", metavar="FILE", help="an .osim file (default: the built-in Gait2392)")
+    s.add_argument("--json", action="store_true", help="machine-readable output, SI units (default: a table)")
     s.set_defaults(func=cmd_info)
 
     from . import cli_robot, cli_torques, cli_visual  # noqa: PLC0415
@@ -105,11 +126,34 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _version() -> str:
+    from . import __version__  # noqa: PLC0415
+
+    return __version__
+
+
+def _quiet_broken_pipe() -> int:
+    """stdout was closed by the reader (``pamkin ... | head``): leave quietly, as Unix tools do."""
+    import os  # noqa: PLC0415
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())   # the interpreter's final flush must not fail again
+    except (OSError, ValueError):
+        pass
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; return the exit code (0 ok, 1 stale/--check, 2 error, 3 infeasible)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        code = int(args.func(args) or 0)
+        sys.stdout.flush()
+        return code
+    except BrokenPipeError:
+        return _quiet_broken_pipe()
     except PamkinError as e:
         print(f"pamkin {args.command}: error: {e}", file=sys.stderr)
         return 2

@@ -8,6 +8,17 @@ import time
 from pathlib import Path
 
 
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
+    return v
+
+
 def add_parsers(sub) -> None:
     s = sub.add_parser(
         "optimize", help="optimise PAM routes, sizes and parallel counts (CasADi + IPOPT) against Gait2392",
@@ -18,14 +29,23 @@ def add_parsers(sub) -> None:
                     "clear of the bone shafts. Writes a run folder (design.yaml, summary.json, log.txt, "
                     "before_after.png); --apply also writes the design into robot/data/pam_biped.yaml and "
                     "regenerates urdf/pam_biped.urdf (atomically; only when every actuator is feasible).")
-    s.add_argument("config", nargs="?", help="TOML run description (see optimize/config.py; default: defaults)")
-    s.add_argument("--out", help="run folder (default: runs/<date-time>)")
-    s.add_argument("--apply", action="store_true", help="write the result into the robot data and URDF")
-    s.add_argument("--actuators", help="comma-separated actuator ids (overrides the config)")
-    s.add_argument("--workers", type=int, help="worker processes (overrides the config)")
-    s.add_argument("--warm-start", help="run folder whose design.yaml seeds the routes (overrides the config)")
-    s.add_argument("--design", help="seed design file or 'thesis' (overrides the config; default robot design)")
-    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.add_argument("config", nargs="?", metavar="CONFIG",
+                   help="TOML run description; every key optional, documented with its default in "
+                        "optimize/config.py (pamkin.optimize.config) (default: all defaults)")
+    s.add_argument("--out", metavar="DIR", help="run folder (default: runs/<date-time> in the current folder)")
+    s.add_argument("--apply", action="store_true",
+                   help="also write the result into robot/data/pam_biped.yaml and urdf/pam_biped.urdf "
+                        "(default: off; only when every actuator is feasible)")
+    s.add_argument("--actuators", metavar="IDS",
+                   help="comma-separated actuator ids, e.g. 4,5,6 (overrides the config; default: all 27)")
+    s.add_argument("--workers", type=positive_int, metavar="N",
+                   help="worker processes, >= 1 (overrides the config; default: the config's, 2)")
+    s.add_argument("--warm-start", metavar="RUN",
+                   help="run folder whose design.yaml seeds the routes (overrides the config; default: none)")
+    s.add_argument("--design", metavar="DESIGN",
+                   help="seed design: a design file, a run folder or 'thesis' (overrides the config; default: "
+                        "the robot's design robot/data/pam_biped.yaml)")
+    s.add_argument("--quiet", action="store_true", help="no progress lines on stderr (default: progress shown)")
     s.set_defaults(func=cmd_optimize)
 
 
@@ -41,7 +61,7 @@ def cmd_optimize(args: argparse.Namespace) -> int:
             cfg.actuators = [int(a) for a in args.actuators.split(",")]
         except ValueError:
             raise ConfigurationError(f"--actuators must be comma-separated integers, got {args.actuators!r}") from None
-    if args.workers:
+    if args.workers is not None:
         cfg.workers = args.workers
     if args.warm_start:
         cfg.warm_start = args.warm_start
@@ -55,18 +75,42 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     except InfeasibleError as e:
         print(f"pamkin optimize: {e}\nnothing was written into the robot data; see {out}", file=sys.stderr)
         return 3
+    print_summary(summary, out)
+    return 0
+
+
+LEGEND = """\
+Columns: id = actuator; PAM = its name; d x n = Festo diameter [mm] x PAMs in parallel; rest = resting
+length [m]; tendon = artificial tendon [m]; NRMSE = RMS(robot - human torque) / human peak over the
+primary coordinate's 1-D sweep (81 samples, independent numpy check; the progress lines show the
+optimiser's own fit NRMSE on its 25 samples), before = seed design, after = optimised; 2-D = NRMSE
+on the grid primary x first secondary coordinate (- : none); sign = fraction of samples where robot
+and human torque agree in sign; dead = fraction of the constraint grid outside the PAM's strain range;
+clear = smallest bone clearance beyond the PAM radius [mm]."""
+
+
+def print_summary(summary: dict, out: Path) -> None:
+    """The before/after table with its legend, the totals and the next command to run."""
+    rows = summary["actuators"]
+    w = max([len(a["name"]) for a in rows] + [3])
     print(f"\nRun folder {out} ({summary['total_seconds']} s)")
-    print(f"{'id':>3} {'PAM':26s} {'d':>3} {'n':>2} {'rest m':>7} {'tendon':>7} {'NRMSE before':>12} "
+    print(f"{'id':>3} {'PAM':{w}s} {'d x n':>6} {'rest m':>7} {'tendon m':>8} {'NRMSE before':>12} "
           f"{'after':>6} {'2-D':>6} {'sign':>5} {'dead':>5} {'clear mm':>8}")
-    for a in summary["actuators"]:
+    for a in rows:
         two = "-" if a["nrmse_2d_after"] is None else f"{a['nrmse_2d_after']:.3f}"
-        print(f"{a['id']:3d} {a['name'][:26]:26s} {a['diameter_mm']:3d} {a['n_parallel']:2d} "
-              f"{a['resting_length_m']:7.3f} {a['tendon_length_m']:7.3f} {a['nrmse_before']:12.3f} "
+        dn = f"{a['diameter_mm']}x{a['n_parallel']}"
+        print(f"{a['id']:3d} {a['name']:{w}s} {dn:>6} "
+              f"{a['resting_length_m']:7.3f} {a['tendon_length_m']:8.3f} {a['nrmse_before']:12.3f} "
               f"{a['nrmse_after']:6.3f} {two:>6} {a['sign_agreement']:5.2f} {a['dead_zone_fraction']:5.2f} "
               f"{1000 * a['min_bone_clearance_m']:8.1f}")
+    print(LEGEND)
     print(f"median NRMSE {summary['median_nrmse_before']:.3f} -> {summary['median_nrmse_after']:.3f}; "
-          f"{summary['n_within_0.20_after']} of {len(summary['actuators'])} within 0.20; "
+          f"{summary['n_within_0.20_after']} of {len(rows)} within 0.20; "
           f"{summary['n_halved']} halved; all buildable: {summary['all_buildable']}; "
           f"all clear of bone: {summary['all_clear_bone']}"
           + ("; applied to robot/data/pam_biped.yaml" if summary.get("applied") else ""))
-    return 0
+    if summary.get("applied"):
+        print("Next: pamkin compare    (the robot's design now is the optimised one)")
+    else:
+        print(f"Next: pamkin compare --design {out}    (or pamkin report --design {out}; "
+              "add --apply to pamkin optimize to make it the robot's design)")

@@ -20,8 +20,10 @@ def add_parsers(sub) -> None:
                     "tendon) and reports infeasible PAMs; --method design prints the design file's sizes.")
     s.add_argument("--design", help="design file, or 'thesis' for the thesis design robot/data/thesis_design.yaml "
                                     "(default: the robot's design robot/data/pam_biped.yaml)")
-    s.add_argument("--method", choices=("thesis", "constrained", "design"), default="thesis")
-    s.add_argument("--json", action="store_true", help="machine-readable output")
+    s.add_argument("--method", choices=("thesis", "constrained", "design"), default="thesis",
+                   help="thesis: the thesis Size() algorithm; constrained: stated and checked limits; design: the "
+                        "design file's own sizes (default: thesis)")
+    s.add_argument("--json", action="store_true", help="machine-readable output (default: a table)")
     s.set_defaults(func=cmd_size)
 
     s = sub.add_parser(
@@ -33,9 +35,9 @@ def add_parsers(sub) -> None:
                     "capacity envelopes.")
     s.add_argument("--design", help="design file, or 'thesis' for the thesis design (default: the robot's "
                                     "design robot/data/pam_biped.yaml)")
-    s.add_argument("--side", choices=("r", "l"), default="r")
-    s.add_argument("-n", type=int, default=41, help="samples of the 1-D sweeps (default 41)")
-    s.add_argument("--json", action="store_true", help="machine-readable output")
+    s.add_argument("--side", choices=("r", "l"), default="r", help="leg side (default: r)")
+    s.add_argument("-n", type=int, default=41, help="samples of the 1-D sweeps (default: 41)")
+    s.add_argument("--json", action="store_true", help="machine-readable output (default: a table)")
     s.set_defaults(func=cmd_compare)
 
 

@@ -25,8 +25,8 @@ def add_parsers(sub) -> None:
                    help="comma-separated grid coordinates, side suffix optional "
                         "(default hip_flexion,knee_angle)")
     s.add_argument("-n", type=int, default=21, help="grid points per coordinate (default 21)")
-    s.add_argument("--activation", type=float, default=1.0, help="activation of every muscle (default 1)")
-    s.add_argument("--json", action="store_true", help="machine-readable output")
+    s.add_argument("--activation", type=float, default=1.0, help="activation of every muscle, in [0, 1] (default: 1)")
+    s.add_argument("--json", action="store_true", help="machine-readable output (default: tables)")
     s.set_defaults(func=cmd_torques)
 
 

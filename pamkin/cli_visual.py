@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import warnings
 from pathlib import Path
 
@@ -28,18 +29,21 @@ def add_parsers(sub) -> None:
     s.add_argument("--geometry", metavar="DIR",
                    help=f"folder of the .vtp bone meshes (default: {DEFAULT_GEOMETRY} if it exists, else "
                         "simple shapes); an explicit folder that does not exist is an error")
-    s.add_argument("--no-meshes", action="store_true", help="draw simple shapes instead of bone meshes")
+    s.add_argument("--no-meshes", action="store_true",
+                   help="draw simple shapes instead of bone meshes (default: meshes when the folder exists)")
     s.add_argument("--layout", choices=("side", "overlay"), default="side",
                    help="side: robot beside the human (default); overlay: both on one skeleton")
     s.add_argument("--color", choices=("force", "strain"), default="force",
                    help="colour muscles and PAMs by force [N] (default) or by contraction strain [-]")
-    s.add_argument("--sweep", metavar="COORD", help="animate this coordinate over the design's range of motion")
+    s.add_argument("--sweep", metavar="COORD",
+                   help="animate this coordinate over the design's range of motion (default: a still picture)")
     s.add_argument("-n", type=int, default=21, help="samples of the sweep (default 21; played forth and back)")
     s.add_argument("--set", action="append", default=[], metavar="COORD=VALUE",
                    help="set a coordinate of the shown configuration, degrees (metres for pelvis_tx/ty/tz); "
-                        "repeatable")
+                        "repeatable (default: every coordinate 0)")
     s.add_argument("--screenshot", metavar="PNG",
-                   help="also render the page with headless Chromium (/usr/bin/chromium) into this PNG")
+                   help="also render the page with headless Chromium (/usr/bin/chromium) into this PNG "
+                        "(default: no screenshot)")
     s.add_argument("--size", default="1000x700", help="screenshot size WIDTHxHEIGHT in pixels (default 1000x700)")
     s.set_defaults(func=cmd_view)
 
@@ -53,11 +57,12 @@ def add_parsers(sub) -> None:
     s.add_argument("--design", help="design file, or 'thesis' for the thesis design (default: the robot's design "
                                     "robot/data/pam_biped.yaml)")
     s.add_argument("--out", default="pamkin-report", metavar="DIR", help="output folder (default: pamkin-report)")
-    s.add_argument("--side", choices=("r", "l"), default="r")
+    s.add_argument("--side", choices=("r", "l"), default="r", help="leg side (default: r)")
     s.add_argument("-n", type=int, default=25, help="grid points per coordinate of the surfaces (default 25)")
     s.add_argument("--n1", type=int, default=101, help="samples of the 1-D curves (default 101)")
     s.add_argument("--pams", metavar="IDS", help="comma-separated actuator ids (default: all)")
     s.add_argument("--partner", metavar="COORD", help="second grid coordinate for every PAM (default: per PAM)")
+    s.add_argument("--quiet", action="store_true", help="no progress lines on stderr (default: progress shown)")
     s.set_defaults(func=cmd_report)
 
 
@@ -123,7 +128,11 @@ def cmd_report(args: argparse.Namespace) -> int:
             pams = [int(x) for x in args.pams.split(",") if x.strip()]
         except ValueError:
             raise ConfigurationError(f"--pams {args.pams!r}: expected comma-separated actuator ids") from None
+    def progress(done: int, total: int, key: str, name: str) -> None:
+        bar = "#" * int(30 * done / total)
+        print(f"[{bar:30s}] {done:2d}/{total}  {key} {name}", file=sys.stderr, flush=True)
+
     rep = torque_report(_robot(args.design), pamkin.gait2392(), args.out, side=args.side, n=args.n, n1=args.n1,
-                        pams=pams, partner=args.partner)
+                        pams=pams, partner=args.partner, progress=None if args.quiet else progress)
     print(f"wrote {len(rep.files)} figures and {rep.index}")
     return 0

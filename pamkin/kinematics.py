@@ -279,9 +279,18 @@ class Kinematics:
         Returns:
             d(point in ground)/dq [m/rad or m/m].
         """
+        if body not in self.bodies:
+            raise ConfigurationError(f"unknown body {body!r}; valid: {self.bodies}")
+        try:
+            pt = np.asarray(point, dtype=float)
+        except (TypeError, ValueError):
+            raise ConfigurationError(f"point must be 3 numbers [m] in the body frame, got {point!r}") from None
+        if pt.shape != (3,) or not np.all(np.isfinite(pt)):
+            raise ConfigurationError(f"point must be 3 finite numbers [m] in the body frame, got shape {pt.shape}: "
+                                     f"{pt.tolist()}")
         st = self.forward(q)
         b = self.bodies.index(body)
-        x = self.point_positions(st, b, np.asarray(point, float)[None, :])[:, 0]
+        x = self.point_positions(st, b, pt[None, :])[:, 0]
         return self._point_jacobian(st, b, x)
 
     def _point_jacobian(self, st: KinematicsState, b: int, x: np.ndarray) -> np.ndarray:

@@ -9,7 +9,7 @@ import numpy as np
 
 from .kinematics import ConfigLike, Kinematics, KinematicsState
 from .osim import OsimModel, load_osim_file
-from .errors import UnsupportedFeatureError
+from .errors import ParameterError, UnsupportedFeatureError
 from .paths import PathResult, PathSet
 from .thelen2003 import ThelenParams, equilibrium, tendon_force
 from .urdf_build import GAIT2392_DATA, GAIT2392_URDF, cached_urdf, load_model_data
@@ -58,8 +58,11 @@ class Model:
         self._unsupported_force = [m for m in osim.muscles if m.kind != "Thelen2003Muscle"]
         self.thelen_params: ThelenParams | None = None
         if thelen and not self._unsupported_force:
-            self.thelen_params = ThelenParams.from_osim_properties([m.params for m in thelen],
-                                                                   [m.name for m in thelen])
+            try:
+                self.thelen_params = ThelenParams.from_osim_properties([m.params for m in thelen],
+                                                                       [m.name for m in thelen])
+            except ParameterError as e:    # name the file the parameter comes from
+                raise ParameterError(f"{osim.path}: {e}") from None
 
     @property
     def coordinates(self) -> list[str]:

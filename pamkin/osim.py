@@ -9,7 +9,8 @@ Supported (everything Gait2392 uses, plus the common simple joints):
   and body-fixed XYZ orientation.
 * ``Coordinate`` (name, range, default value, locked, clamped).
 * Muscles ``Thelen2003Muscle`` and ``Millard2012EquilibriumMuscle`` with
-  ``PathPoint``, ``ConditionalPathPoint`` and ``MovingPathPoint`` paths.
+  ``PathPoint``, ``ConditionalPathPoint`` and ``MovingPathPoint`` paths; ``PathActuator`` paths
+  too (read as muscles of kind ``"PathActuator"``: lengths and moment arms, no muscle forces).
 
 Anything else that changes kinematics or muscle paths (wrap objects, constraints,
 other joint, function, path-point or force types) raises
@@ -40,6 +41,14 @@ GROUND = "ground"
 
 #: Muscle classes whose parameters pamkin reads.
 MUSCLE_CLASSES = ("Thelen2003Muscle", "Millard2012EquilibriumMuscle")
+#: Path actuators read like muscles (their path; ``optimal_force`` and the control range as
+#: parameters): lengths and moment arms work, forces need a muscle model. ``pamkin export-osim``
+#: writes PAMs as PathActuators.
+PATH_ACTUATOR_CLASSES = ("PathActuator",)
+
+#: PathActuator properties (name in the file -> OpenSim's default when absent).
+PATH_ACTUATOR_PROPERTIES: dict[str, float] = {"optimal_force": 1.0, "min_control": -math.inf,
+                                               "max_control": math.inf}
 
 #: Thelen2003Muscle properties (name in the file -> default when absent).
 THELEN_PROPERTIES: dict[str, float] = {
@@ -262,7 +271,7 @@ class Muscle:
 
     Attributes:
         name: Muscle name.
-        kind: OpenSim class (``Thelen2003Muscle`` or ``Millard2012EquilibriumMuscle``).
+        kind: OpenSim class (``Thelen2003Muscle``, ``Millard2012EquilibriumMuscle`` or ``PathActuator``).
         points: Path points in order (origin first).
         params: Scalar properties by OpenSim property name (SI units).
     """
@@ -684,9 +693,10 @@ def _read_muscles(rd: _Reader, model_el: ET.Element, body_names: set[str],
     out = []
     for f in forceset:
         name = f.get("name") or ""
-        if f.tag not in MUSCLE_CLASSES:
+        if f.tag not in MUSCLE_CLASSES + PATH_ACTUATOR_CLASSES:
             raise rd.err(f"force type <{f.tag}> is not supported (muscle classes: "
-                         f"{', '.join(MUSCLE_CLASSES)})", f, unsupported=True)
+                         f"{', '.join(MUSCLE_CLASSES)}; path actuators: {', '.join(PATH_ACTUATOR_CLASSES)})",
+                         f, unsupported=True)
         gp = f.find("GeometryPath")
         if gp is None:
             raise rd.err("muscle without <GeometryPath>", f)
@@ -699,7 +709,8 @@ def _read_muscles(rd: _Reader, model_el: ET.Element, body_names: set[str],
         points = [_read_point(rd, p, f, body_names, coord_names) for p in pps]
         if isinstance(points[0], ConditionalPathPoint) or isinstance(points[-1], ConditionalPathPoint):
             raise rd.err("first and last path points must not be conditional", f, unsupported=True)
-        defaults = THELEN_PROPERTIES if f.tag == "Thelen2003Muscle" else MILLARD_PROPERTIES
+        defaults = {"Thelen2003Muscle": THELEN_PROPERTIES, "PathActuator": PATH_ACTUATOR_PROPERTIES}.get(
+            f.tag, MILLARD_PROPERTIES)
         params = {}
         for key, default in defaults.items():
             el = f.find(key)

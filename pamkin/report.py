@@ -122,7 +122,7 @@ def partner_coordinate(robot, k: int) -> str:
 
 
 def torque_report(robot, human, out_dir: str | os.PathLike, *, side: str = "r", n: int = 25, n1: int = 101,
-                  pams: list[int] | None = None, partner: str | None = None) -> Report:
+                  pams: list[int] | None = None, partner: str | None = None, progress=None) -> Report:
     """Write the torque-surface report of ``robot`` against ``human`` into ``out_dir``.
 
     Args:
@@ -134,6 +134,7 @@ def torque_report(robot, human, out_dir: str | os.PathLike, *, side: str = "r", 
         n1: Samples of the 1-D curves.
         pams: Actuator ids to draw (default: all).
         partner: Second grid coordinate for every PAM (default: :func:`partner_coordinate`).
+        progress: Called as ``progress(done, total, pam_key, pam_name)`` after each PAM's figures.
 
     Raises:
         pamkin.errors.ConfigurationError: Unknown coordinates or PAM ids, or a partner equal to a
@@ -187,6 +188,8 @@ def torque_report(robot, human, out_dir: str | os.PathLike, *, side: str = "r", 
         _curve_figure(curve, title, prim, np.degrees(q1[:, ci]), T1, R1, r1.strain[:, k], ~r1.in_range[:, k])
         out.append(PamFigures(pam.id, pam.key, pam.name, side, robot.human_muscles(k), pam.diameter_mm, prim, second,
                               surfaces, curve, m1, m2))
+        if progress is not None:
+            progress(len(out), len(cols), pam.key, pam.name)
     index = folder / "index.html"
     _write_index(index, robot, rom.name, n, n1, out)
     return Report(folder, index, tuple(out))

@@ -11,7 +11,8 @@ with the fixed-width pennation model ``l·sin(alpha) = l0·sin(alpha0)`` (consta
 parallelogram height ``h``). The curves are OpenSim's (see
 :func:`force_length_active`, :func:`force_length_passive`,
 :func:`tendon_force_length`); activation is clamped to
-``[minimum_activation, 1]`` as OpenSim's activation model does.
+``[minimum_activation, 1]`` as OpenSim's activation model does (activation outside [0, 1]
+is an error).
 
 **Minimum fibre length.** OpenSim keeps the fibre at or above the length at
 which the pennation angle reaches ``maximum_pennation_angle`` (default
@@ -286,7 +287,7 @@ class ThelenParams:
             bad = np.flatnonzero(~(ok & np.isfinite(values)))
             if bad.size:
                 i = int(bad[0])
-                raise ParameterError(f"{self.muscle_name(i)}: {key} {rule} (got {values[i]!r})")
+                raise ParameterError(f"{self.muscle_name(i)}: {key} {rule} (got {float(values[i]):g})")
 
     @classmethod
     def from_osim_properties(cls, properties: list[dict[str, float]],
@@ -386,6 +387,10 @@ def _prepare(lmt: np.ndarray, params: ThelenParams,
                                  f"to the lengths' shape {lmt.shape}") from None
     if not np.all(np.isfinite(np.asarray(activation, dtype=float))):
         raise ConfigurationError("activation must be finite")
+    outside = (act < 0.0) | (act > 1.0)
+    if np.any(outside):
+        raise ConfigurationError(f"activation must lie in [0, 1] (got {float(act[outside].flat[0]):g}); "
+                                 "values below minimum_activation are raised to it, as in OpenSim")
     m = params.n_muscles
     act = act.reshape(-1, m)
     if act.strides[0] == 0:  # the same for every configuration
@@ -413,8 +418,8 @@ def equilibrium(lmt: np.ndarray, params: ThelenParams, activation: float | np.nd
         lmt: (..., n_muscles) musculotendon lengths [m], e.g. (N configurations, n_muscles).
             NaN entries give NaN results.
         params: Muscle parameters.
-        activation: Activation in [0, 1], scalar or broadcastable to ``lmt``; clamped to
-            ``[minimum_activation, 1]`` like OpenSim.
+        activation: Activation in [0, 1], scalar or broadcastable to ``lmt``; values below
+            ``minimum_activation`` are raised to it like OpenSim; outside [0, 1] is an error.
         rigid_tendon: If True, the tendon is inextensible at its slack length: the fibre
             length follows from geometry (``lM·cos(alpha) = lMT − lTs``) and the force is
             ``Fmax·(a·fL + fPE)·cos(alpha)``. Where ``lMT − lTs`` is at or below the minimum

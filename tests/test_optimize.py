@@ -141,7 +141,7 @@ def test_apply_and_warm_start(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("text,match", [
     ("workers = 2\nbogus = 1\n", "unknown key 'bogus'"),
-    ("[samples]\nprimary = 1\n", "primary must be >= 2"),
+    ("[samples]\nprimary = 1\n", "samples.primary: must be >= 2"),
     ("diameters_mm = [12]\n", "diameters_mm"),
     ("[regions]\n\"6.p2\" = -0.1\n", "regions.6.p2"),
     ("workers = \n", "not valid TOML"),
@@ -180,9 +180,17 @@ def test_optimize_cli_one_actuator(tmp_path, capsys):
     from pamkin.cli import main
 
     out = tmp_path / "run"
-    assert main(["optimize", "--actuators", "26", "--workers", "1", "--out", str(out), "--quiet"]) == 0
-    text = capsys.readouterr().out
+    assert main(["optimize", "--actuators", "26", "--workers", "1", "--out", str(out)]) == 0
+    cap = capsys.readouterr()
+    text = cap.out
     assert "Iliacus" in text and "median NRMSE" in text
+    # legend with units, full names, labelled NRMSEs, the next command; progress for solve and check
+    assert "tendon = artificial tendon [m]" in text and "clearance beyond the PAM radius [mm]" in text
+    assert "fit NRMSE" in cap.err and "solve [" in cap.err and "check [" in cap.err
+    assert text.rstrip().splitlines()[-1].startswith(f"Next: pamkin compare --design {out}")
+    header = (out / "design.yaml").read_text().splitlines()[:3]
+    assert any("Written by `pamkin optimize` into the run folder run" in h for h in header)
+    assert not any("--apply`;" in h for h in header)
     s = json.loads((out / "summary.json").read_text())
     assert s["actuators"][0]["id"] == 26 and s["actuators"][0]["buildable"]
     assert main(["optimize", "--actuators", "99", "--out", str(tmp_path / "bad")]) == 2

@@ -152,7 +152,9 @@ def test_activation_is_clamped_to_minimum_activation():
     lmt = np.linspace(0.25, 0.36, 12)[:, None]
     np.testing.assert_array_equal(tendon_force(lmt, p, activation=0.0),
                                   tendon_force(lmt, p, activation=0.01))
-    np.testing.assert_array_equal(tendon_force(lmt, p, activation=2.0), tendon_force(lmt, p))
+    for bad in (2.0, -0.1, np.r_[np.full(11, 0.5), 1.5][:, None]):   # outside [0, 1]: an error, not a silent clamp
+        with pytest.raises(ConfigurationError, match=r"activation must lie in \[0, 1\]"):
+            tendon_force(lmt, p, activation=bad)
 
 
 def test_shapes_and_nan_propagation():
