@@ -119,8 +119,8 @@ def plot_criteria(res, path: str | os.PathLike) -> Path:
         if logy:
             ax.set_yscale("symlog", linthresh=1.0)
         ax.grid(axis="y", alpha=0.3)
-    fig.suptitle(f"pamkin audit: {res.design}  ({'passed' if res.passed else 'failed: ' + ', '.join(res.failed)})",
-                 fontsize=11)
+    verdict = "every limit passed" if res.passed else f"{len(res.failed)} limits failed (see scorecard.txt)"
+    fig.suptitle(f"pamkin audit: {res.design} ({verdict})", fontsize=11)
     fig.supxlabel("PAM id (red: beyond the threshold, dashed)")
     fig.tight_layout()
     path = Path(path)

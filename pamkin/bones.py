@@ -90,6 +90,21 @@ class BoneSet:
         self._box = {b: (np.min([m.vertices.min(0) for m in ms], axis=0), np.max([m.vertices.max(0) for m in ms], axis=0))
                      for b, ms in self.meshes.items() if ms}
 
+    @classmethod
+    def from_meshes(cls, model, meshes: dict[str, list]) -> BoneSet:
+        """A bone set from given meshes (``{body: [(vertices (V, 3), faces (F, 3)), ...]}`` in body
+        frames [m]) instead of the model's files; ``model`` gives the body order."""
+        self = cls.__new__(cls)
+        self.geometry_dir = None
+        self.model = model
+        self.meshes = {b: [BoneMesh(b, np.ascontiguousarray(v, dtype=np.float64),
+                                    np.ascontiguousarray(f, dtype=np.int64), ()) for v, f in ms]
+                       for b, ms in meshes.items()}
+        self.bodies = [b for b, ms in self.meshes.items() if ms]
+        self._box = {b: (np.min([m.vertices.min(0) for m in ms], axis=0),
+                         np.max([m.vertices.max(0) for m in ms], axis=0)) for b, ms in self.meshes.items() if ms}
+        return self
+
     def body_signed_distance(self, body: str, points: np.ndarray) -> np.ndarray:
         """Signed distance [m] of points given in ``body``'s frame to that body's bone (negative inside).
 
@@ -107,8 +122,10 @@ class BoneSet:
         if len(P) == 0:
             return out
         for m in self.meshes.get(body, []):
-            s = igl.signed_distance(P, m.vertices, m.faces,
-                                    sign_type=igl.SIGNED_DISTANCE_TYPE_FAST_WINDING_NUMBER)[0]
+            r = igl.signed_distance(P, m.vertices, m.faces, sign_type=igl.SIGNED_DISTANCE_TYPE_FAST_WINDING_NUMBER)
+            # libigl scales the distance by its continuous winding-number sign (1 - 2w): keep only the
+            # sign and take the exact distance to the closest surface point
+            s = np.sign(r[0]) * np.linalg.norm(P - r[2], axis=1)
             out = np.minimum(out, s)
         return out
 
