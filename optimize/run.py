@@ -234,7 +234,8 @@ def _run_header(out_dir: Path, cfg: RunConfig) -> str:
     return ("# An optimised PAM design (right side; the left side is the mirror image).\n"
             f"# Written by `pamkin optimize` into the run folder {Path(out_dir).name} "
             f"(config: {Path(cfg.source).name if cfg.source else 'defaults'}); format: pamkin.design.\n"
-            "# Not applied to the robot: `pamkin optimize --apply` (or --warm-start this folder) does that.\n")
+            "# Not applied to the robot's design (`pamkin optimize --apply` does that); reuse it with\n"
+            "# --design or --warm-start and this folder.\n")
 
 
 def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -> dict:

@@ -82,8 +82,8 @@ def cmd_optimize(args: argparse.Namespace) -> int:
 LEGEND = """\
 Columns: id = actuator; PAM = its name; d x n = Festo diameter [mm] x PAMs in parallel; rest = resting
 length [m]; tendon = artificial tendon [m]; NRMSE = RMS(robot - human torque) / human peak over the
-primary coordinate's 1-D sweep (81 samples, independent numpy check; the progress lines show the
-optimiser's own fit NRMSE on its 25 samples), before = seed design, after = optimised; 2-D = NRMSE
+primary coordinate's 1-D sweep (81 samples, independent numpy check; the progress lines' "fit NRMSE"
+is the optimiser's own, on its coarser samples), before = seed design, after = optimised; 2-D = NRMSE
 on the grid primary x first secondary coordinate (- : none); sign = fraction of samples where robot
 and human torque agree in sign; dead = fraction of the constraint grid outside the PAM's strain range;
 clear = smallest bone clearance beyond the PAM radius [mm]."""
