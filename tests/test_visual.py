@@ -300,7 +300,7 @@ def report_dir(tmp_path_factory):
 def test_report_writes_every_figure_and_index(report_dir):
     from PIL import Image
 
-    from pamkin.cli_robot import _robot
+    from pamkin.cli.robot import _robot
 
     out, cpu_seconds = report_dir
     assert cpu_seconds < 60

@@ -25,10 +25,10 @@ def add_parsers(sub) -> None:
 
 
 def cmd_export_osim(args: argparse.Namespace) -> int:
-    from .design import ROBOT_DESIGN, load_design  # noqa: PLC0415
-    from .osim_export import design_to_osim  # noqa: PLC0415
-    from .rom import load_rom  # noqa: PLC0415
-    from .urdf_build import GAIT2392_DATA, load_model_data  # noqa: PLC0415
+    from ..design import ROBOT_DESIGN, load_design  # noqa: PLC0415
+    from ..osim_export import design_to_osim  # noqa: PLC0415
+    from ..rom import load_rom  # noqa: PLC0415
+    from ..urdf_build import GAIT2392_DATA, load_model_data  # noqa: PLC0415
 
     skeleton = load_model_data(GAIT2392_DATA)
     src = ROBOT_DESIGN if args.design == "robot" else args.design

@@ -8,7 +8,7 @@ import sys
 
 
 def add_parsers(sub) -> None:
-    from .audit import GAIT_IK, LIMITS_FILE  # noqa: PLC0415
+    from ..audit import GAIT_IK, LIMITS_FILE  # noqa: PLC0415
 
     s = sub.add_parser(
         "audit", help="measure what a design is really worth: held-out poses, every coordinate, bones, buildability",
@@ -24,8 +24,8 @@ def add_parsers(sub) -> None:
     s.add_argument("design", nargs="?", default=None,
                    help="design file, a `pamkin optimize` run folder, or 'thesis' (default: the robot's design "
                         "robot/data/pam_biped.yaml)")
-    s.add_argument("--json", action="store_true", help="print one JSON object (pams, summary, criteria)")
-    s.add_argument("--out", help="folder for audit.json, scorecard.txt, criteria.png and view.html")
+    s.add_argument("--json", action="store_true", help="print one JSON object (pams, summary, criteria) instead of the scorecard (default: the scorecard)")
+    s.add_argument("--out", help="folder for audit.json, scorecard.txt, criteria.png and view.html (default: write nothing)")
     s.add_argument("--quick", action="store_true",
                    help="fewer samples (500 random poses, 150 of them for bone/PAM geometry, every 3rd gait frame, "
                         "4 mm segment steps, 21-point sweeps); default: 2000 poses, 1000 for geometry, every frame, "
@@ -39,19 +39,19 @@ def add_parsers(sub) -> None:
     s.add_argument("--geometry", help="folder of the model's .vtp bone meshes (default: found beside the model, "
                                       "$PAMKIN_GEOMETRY, or ../shared/opensim-models/Geometry)")
     s.add_argument("--no-gait-plan", action="store_true",
-                   help="skip the gait pressure plan (its feasible-frame fraction then shows '-')")
+                   help="skip the gait pressure plan (its feasible-frame fraction then shows '-'; default: run it)")
     s.add_argument("--screenshot", action="store_true",
-                   help="with --out: also render view.html to view.png with headless Chromium")
+                   help="with --out: also render view.html to view.png with headless Chromium (default: no)")
     s.set_defaults(func=cmd_audit)
 
 
 def cmd_audit(args: argparse.Namespace) -> int:
     from pathlib import Path  # noqa: PLC0415
 
-    from .audit import AuditOptions, audit_design, load_limits  # noqa: PLC0415
-    from .audit_report import audit_view, plot_criteria, scorecard_text  # noqa: PLC0415
-    from .errors import ConfigurationError  # noqa: PLC0415
-    from .urdf_build import atomic_write  # noqa: PLC0415
+    from ..audit import AuditOptions, audit_design, load_limits  # noqa: PLC0415
+    from ..audit_report import audit_view, plot_criteria, scorecard_text  # noqa: PLC0415
+    from ..errors import ConfigurationError  # noqa: PLC0415
+    from ..urdf_build import atomic_write  # noqa: PLC0415
 
     if args.random is not None and args.random < 1:
         raise ConfigurationError(f"--random must be >= 1, got {args.random}")
@@ -77,7 +77,7 @@ def cmd_audit(args: argparse.Namespace) -> int:
         written += [out / "audit.json", out / "scorecard.txt", plot_criteria(res, out / "criteria.png"),
                     audit_view(res, out / "view.html", args.geometry)]
         if args.screenshot:
-            from .view import screenshot  # noqa: PLC0415
+            from ..view import screenshot  # noqa: PLC0415
 
             written.append(screenshot(out / "view.html", out / "view.png"))
     if args.json:

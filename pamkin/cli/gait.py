@@ -8,7 +8,7 @@ import sys
 
 
 def add_parsers(sub) -> None:
-    from .gait import DEFAULT_GRF, DEFAULT_ID, DEFAULT_IK  # noqa: PLC0415
+    from ..gait import DEFAULT_GRF, DEFAULT_ID, DEFAULT_IK  # noqa: PLC0415
 
     s = sub.add_parser(
         "gait", help="can the robot walk like the human? PAM pressures reproducing a walking trial's moments",
@@ -27,19 +27,20 @@ def add_parsers(sub) -> None:
     s.add_argument("--ik", default=str(DEFAULT_IK), help="IK angles .mot (default: the shared subject01 trial)")
     s.add_argument("--id", default=str(DEFAULT_ID), help="ID moments .sto (default: the shared subject01 trial)")
     s.add_argument("--grf", default=str(DEFAULT_GRF),
-                   help="ground reaction forces .mot for the gait phases ('none': no phases; air per window)")
+                   help="ground reaction forces .mot for the gait phases ('none': no phases; air per window; "
+                        "default: the shared subject01 trial)")
     s.add_argument("--p-max", type=float, default=620.0, help="pressure limit [kPa] (default 620)")
     s.add_argument("--tolerance", type=float, default=5.0,
                    help="feasible frame: every residual below this %% of its coordinate's peak (default 5)")
     s.add_argument("--solver", default="proxqp", help="qpsolvers backend (default proxqp; daqp, osqp)")
-    s.add_argument("--out", help="folder for gait.json, pressures.csv, moments.csv and pressures.png")
-    s.add_argument("--json", action="store_true", help="print one JSON object (summary, coordinates, pams)")
+    s.add_argument("--out", help="folder for gait.json, pressures.csv, moments.csv and pressures.png (default: write nothing)")
+    s.add_argument("--json", action="store_true", help="print one JSON object (summary, coordinates, pams) (default: a table)")
     s.set_defaults(func=cmd_gait)
 
 
 def cmd_gait(args: argparse.Namespace) -> int:
-    from .errors import ParameterError  # noqa: PLC0415
-    from .gait import gait_plan, write_outputs  # noqa: PLC0415
+    from ..errors import ParameterError  # noqa: PLC0415
+    from ..gait import gait_plan, write_outputs  # noqa: PLC0415
 
     if not 0 < args.tolerance < 100:
         raise ParameterError(f"--tolerance must be a percentage in (0, 100), got {args.tolerance}")

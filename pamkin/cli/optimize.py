@@ -53,7 +53,7 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     from pamkin.optimize.config import load_config  # noqa: PLC0415
     from pamkin.optimize.run import InfeasibleError, run  # noqa: PLC0415
 
-    from .errors import ConfigurationError  # noqa: PLC0415
+    from ..errors import ConfigurationError  # noqa: PLC0415
 
     cfg = load_config(args.config)
     if args.actuators:

@@ -9,11 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ConfigurationError
+from ..errors import ConfigurationError
 
 
 def add_parsers(sub) -> None:
-    from .view import DEFAULT_GEOMETRY  # noqa: PLC0415
+    from ..view import DEFAULT_GEOMETRY  # noqa: PLC0415
 
     s = sub.add_parser(
         "view", help="meshcat page: skeleton, human muscles and robot PAMs (optionally a range-of-motion sweep)",
@@ -85,9 +85,9 @@ def _configuration(model, items: list[str]) -> np.ndarray:
 def cmd_view(args: argparse.Namespace) -> int:
     import pamkin  # noqa: PLC0415
 
-    from .cli_robot import _robot  # noqa: PLC0415
-    from .view import DEFAULT_GEOMETRY, build_view, screenshot  # noqa: PLC0415
-    from .vtp import body_meshes  # noqa: PLC0415
+    from .robot import _robot  # noqa: PLC0415
+    from ..view import DEFAULT_GEOMETRY, build_view, screenshot  # noqa: PLC0415
+    from ..vtp import body_meshes  # noqa: PLC0415
 
     try:
         width, height = (int(x) for x in args.size.lower().split("x"))
@@ -119,8 +119,8 @@ def cmd_view(args: argparse.Namespace) -> int:
 def cmd_report(args: argparse.Namespace) -> int:
     import pamkin  # noqa: PLC0415
 
-    from .cli_robot import _robot  # noqa: PLC0415
-    from .report import torque_report  # noqa: PLC0415
+    from .robot import _robot  # noqa: PLC0415
+    from ..report import torque_report  # noqa: PLC0415
 
     pams = None
     if args.pams:

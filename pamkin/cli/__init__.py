@@ -1,4 +1,6 @@
-"""The ``pamkin`` command line: one entry point with subcommands.
+"""The ``pamkin`` command line: one entry point with subcommands, one module each
+(``pamkin.cli.<command>``: torques, robot (size, compare), optimize, export, visual (view, report),
+gait, audit; ``info`` and ``urdf`` live here).
 
 Run ``pamkin --help`` for the list and ``pamkin COMMAND --help`` for each command.
 """
@@ -13,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._resources import DEFAULT_OSIM  # re-exported: pamkin.cli.DEFAULT_OSIM
-from .errors import PamkinError
+from .._resources import DEFAULT_OSIM  # re-exported: pamkin.cli.DEFAULT_OSIM
+from ..errors import PamkinError
 
 
 def _load(osim: str | None):
@@ -24,7 +26,7 @@ def _load(osim: str | None):
 
 
 def cmd_urdf(args: argparse.Namespace) -> int:
-    from .urdf_build import build_gait2392  # noqa: PLC0415
+    from ..urdf_build import build_gait2392  # noqa: PLC0415
 
     osim = Path(args.osim) if args.osim else DEFAULT_OSIM
     files = build_gait2392(osim, check=args.check, geometry_dir=args.geometry)
@@ -108,26 +110,28 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--json", action="store_true", help="machine-readable output, SI units (default: a table)")
     s.set_defaults(func=cmd_info)
 
-    from . import cli_robot, cli_torques, cli_visual  # noqa: PLC0415
+    from . import robot as cli_robot, torques as cli_torques, visual as cli_visual  # noqa: PLC0415
 
     cli_torques.add_parsers(sub)
     cli_robot.add_parsers(sub)
-    from . import cli_optimize  # noqa: PLC0415
+    from . import optimize as cli_optimize  # noqa: PLC0415
 
     cli_optimize.add_parsers(sub)
-    from . import cli_export  # noqa: PLC0415
+    from . import export as cli_export  # noqa: PLC0415
 
     cli_export.add_parsers(sub)
     cli_visual.add_parsers(sub)
-    from . import cli_gait; cli_gait.add_parsers(sub)  # noqa: E702, PLC0415
-    from . import cli_audit  # noqa: PLC0415
+    from . import gait as cli_gait  # noqa: PLC0415
+
+    cli_gait.add_parsers(sub)
+    from . import audit as cli_audit  # noqa: PLC0415
 
     cli_audit.add_parsers(sub)
     return p
 
 
 def _version() -> str:
-    from . import __version__  # noqa: PLC0415
+    from .. import __version__  # noqa: PLC0415
 
     return __version__
 

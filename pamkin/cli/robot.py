@@ -42,15 +42,15 @@ def add_parsers(sub) -> None:
 
 
 def _robot(design_path: str | None):
-    from .robot import design_robot  # noqa: PLC0415
+    from ..robot import design_robot  # noqa: PLC0415
 
     return design_robot(design_path)
 
 
 def sizing_rows(robot, method: str) -> list[dict]:
     """One row per PAM (right side) with the sizing of ``method``."""
-    from .rom import load_rom  # noqa: PLC0415
-    from .sizing import SizingFallbackWarning, size_pam, thesis_size  # noqa: PLC0415
+    from ..rom import load_rom  # noqa: PLC0415
+    from ..sizing import SizingFallbackWarning, size_pam, thesis_size  # noqa: PLC0415
 
     import pamkin  # noqa: PLC0415
 
@@ -118,7 +118,7 @@ def cmd_size(args: argparse.Namespace) -> int:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     import pamkin  # noqa: PLC0415
-    from .compare import compare_design, compare_groups, compare_joints, summary_line  # noqa: PLC0415
+    from ..compare import compare_design, compare_groups, compare_joints, summary_line  # noqa: PLC0415
 
     robot = _robot(args.design)
     human = pamkin.gait2392()
