@@ -732,36 +732,37 @@ def _clearance(robot: PamRobot, des: Design, kin_state: dict, pam_state: dict, m
             length = ps.pam_lengths[:, c] + fit
             # the PAM body starts at its mount segment
             caps[key][c] = _pam_capsules(pts[:, mounts[k]:], 0, length)
+
+    def closest(ca: list, cb: list, ra: float, rb: float) -> tuple[float, int]:
+        best, arg = np.inf, -1
+        for A, B, va in ca:
+            for C, D, vb in cb:
+                ok = va & vb
+                if not ok.any():
+                    continue
+                d, s = capsule_pair_overlap(A[ok], B[ok], ra, C[ok], D[ok], rb, CLEARANCE_TOLERANCE)
+                if d < best:
+                    best, arg = d, s
+                if best < -CLEARANCE_TOLERANCE:
+                    return best, arg
+        return best, arg
+
     pairs: dict = {}
     pairs_lr: dict = {}
     for a in range(n):
         for b in range(a + 1, n):
             best, arg = np.inf, -1
             for key in caps:
-                for A, B, va in caps[key][a]:
-                    for C, D, vb in caps[key][b]:
-                        ok = va & vb
-                        if not ok.any():
-                            continue
-                        d, s = capsule_pair_overlap(A[ok], B[ok], radius[a], C[ok], D[ok], radius[b], CLEARANCE_TOLERANCE)
-                        if d < best:
-                            best, arg = d, s
-                        if best < -CLEARANCE_TOLERANCE:
-                            break
+                d, s = closest(caps[key][a], caps[key][b], radius[a], radius[b])
+                if d < best:
+                    best, arg = d, s
+                if best < -CLEARANCE_TOLERANCE:
+                    break
             pairs[(a, b)] = (best, arg)
     if "gait" in caps:
         for a in range(n):
             for b in range(n):
-                best, arg = np.inf, -1
-                for A, B, va in caps["gait"][a]:
-                    for C, D, vb in caps["gait"][b + n]:
-                        ok = va & vb
-                        if not ok.any():
-                            continue
-                        d, s = capsule_pair_overlap(A[ok], B[ok], radius[a], C[ok], D[ok], radius[b], CLEARANCE_TOLERANCE)
-                        if d < best:
-                            best, arg = d, s
-                pairs_lr[(a, b)] = (best, arg)
+                pairs_lr[(a, b)] = closest(caps["gait"][a], caps["gait"][b + n], radius[a], radius[b])
     return pairs, pairs_lr, caps
 
 
