@@ -163,8 +163,3 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
-
-
-if __name__ == "__main__":
-    np.set_printoptions(precision=4, suppress=True)
-    sys.exit(main())

@@ -1,0 +1,7 @@
+"""``python -m pamkin``: the ``pamkin`` command."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())
