@@ -6,6 +6,13 @@ coordinate (e.g. the knee translations are SimmSplines of knee angle). This modu
 maps OpenSim coordinates q to Pinocchio's configuration v = f(q) with dv/dq, and
 evaluates body placements and point Jacobians with respect to q.
 
+CoordinateCouplerConstraints: a dependent coordinate always follows its coupler,
+``q_dep = scale · f(q_indep)``; :meth:`Kinematics.as_q` overwrites the dependent columns of every
+configuration from the independent ones (the values given there are ignored), and derivatives
+with respect to an independent coordinate are total derivatives (they include the coupling, as
+OpenSim's moment arms do). A dependent coordinate is not a degree of freedom: derivatives with
+respect to it are reported as 0 (:meth:`Kinematics.chain_dependent`).
+
 Two evaluators share one model description:
 
 * :meth:`Kinematics.pinocchio_placements` — Pinocchio itself, one configuration at a
@@ -24,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ConfigurationError, RangeWarning
-from .osim import OsimModel
+from .osim import GROUND, OsimModel
 
 #: Configurations accepted by the public API: an (N, n) or (n,) array in model
 #: coordinate order, or a mapping coordinate name -> scalar or (N,) array.
@@ -45,8 +52,8 @@ class KinematicsState:
         joint_p: (N, n_joints, 3) origin of each Pinocchio joint frame in ground [m].
         joint_axis: (N, n_joints, 3) unit motion axis of each joint in ground.
         dv_dq: (N, n_joints) derivative of each joint value w.r.t. its OpenSim coordinate.
-        body_R: (N, n_bodies, 3, 3) orientation of each body frame in ground.
-        body_p: (N, n_bodies, 3) origin of each body frame in ground [m].
+        body_R: (N, n_bodies + 1, 3, 3) orientation of each body frame in ground (ground itself last).
+        body_p: (N, n_bodies + 1, 3) origin of each body frame in ground [m] (ground last).
     """
 
     q: np.ndarray
@@ -86,6 +93,26 @@ class Kinematics:
         self.ranges = np.array([c.range for c in osim.coordinates], dtype=float)
         self.defaults = np.array([c.default_value for c in osim.coordinates], dtype=float)
         self.rotational = np.array([c.rotational for c in osim.coordinates], dtype=bool)
+        # couplers in topological order (independent coordinates computed first)
+        self.couplers = []
+        by_dep = {k.dependent: k for k in osim.couplers}
+        done: set[str] = set()
+
+        def visit(name: str) -> None:
+            if name in done or name not in by_dep:
+                return
+            visit(by_dep[name].independent)
+            done.add(name)
+            k = by_dep[name]
+            self.couplers.append((self._coord_index[k.dependent], self._coord_index[k.independent], k))
+
+        for k in osim.couplers:
+            visit(k.dependent)
+        self.dependent = np.zeros(len(self.coordinates), dtype=bool)
+        self.root_of = np.arange(len(self.coordinates))
+        for d, i, _ in self.couplers:
+            self.dependent[d] = True
+            self.root_of[d] = self.root_of[i]
 
         axis_of = {f"{j.name}_{a.name}": (j, a) for j in osim.joints for a in j.axes}
         nj = pin_model.njoints - 1
@@ -115,12 +142,15 @@ class Kinematics:
             self._functions.append(ax.function)
             if jm.idx_q != i - 1:
                 raise ConfigurationError("unexpected Pinocchio joint ordering")
-        # body frames: Pinocchio BODY frames named after the links
-        self._body_joint = np.empty(len(self.bodies), dtype=int)
-        self._body_R = np.empty((len(self.bodies), 3, 3))
-        self._body_p = np.empty((len(self.bodies), 3))
+        # body frames: Pinocchio BODY frames named after the links; ground comes last (index
+        # len(bodies)) so that path points on ground work like points on bodies
+        self.frames: list[str] = self.bodies + [GROUND]
+        nf = len(self.frames)
+        self._body_joint = np.empty(nf, dtype=int)
+        self._body_R = np.empty((nf, 3, 3))
+        self._body_p = np.empty((nf, 3))
         self._body_frame_id = []
-        for b, name in enumerate(self.bodies):
+        for b, name in enumerate(self.frames):
             fid = pin_model.getFrameId(name, pin.BODY)
             if fid >= pin_model.nframes:
                 raise ConfigurationError(f"body {name!r} has no frame in the URDF")
@@ -131,8 +161,8 @@ class Kinematics:
             self._body_p[b] = fr.placement.translation
             self._body_frame_id.append(fid)
         # ancestors: support[b, j] true when joint j moves body b
-        self.body_support = np.zeros((len(self.bodies), nj), dtype=bool)
-        for b in range(len(self.bodies)):
+        self.body_support = np.zeros((nf, nj), dtype=bool)
+        for b in range(nf):
             j = self._body_joint[b]
             while 0 <= j < nj:
                 self.body_support[b, j] = True
@@ -187,13 +217,41 @@ class Kinematics:
                                      f"(first at row {rows[0]})")
         if warn_range:
             lo, hi = self.ranges[:, 0], self.ranges[:, 1]
-            out = (arr < lo - RANGE_TOLERANCE) | (arr > hi + RANGE_TOLERANCE)
+            out = ((arr < lo - RANGE_TOLERANCE) | (arr > hi + RANGE_TOLERANCE)) & ~self.dependent
             if out.any():
                 names = sorted({self.coordinates[c] for c in np.nonzero(out)[1]})
                 warnings.warn(f"{int(out.any(axis=1).sum())} configuration(s) outside the coordinate "
                               f"ranges of {names}; values are used as given (not clamped)",
                               RangeWarning, stacklevel=3)
-        return arr
+        return self.fill_dependent(arr)
+
+    def fill_dependent(self, q: np.ndarray) -> np.ndarray:
+        """Set the dependent coordinates of ``q`` (N, n) from their couplers, in place; returns ``q``."""
+        for d, i, k in self.couplers:
+            q[:, d] = k.value(q[:, i])
+        return q
+
+    def dependent_derivatives(self, q: np.ndarray) -> np.ndarray:
+        """(N, n) d q_c / d q_root(c): 1 for independent coordinates, the chained coupler slopes otherwise."""
+        G = np.ones(q.shape)
+        for d, i, k in self.couplers:
+            G[:, d] = k.derivative(q[:, i]) * G[:, i]
+        return G
+
+    def chain_dependent(self, X: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """Turn partial derivatives along the last axis (..., n) into total ones (in place).
+
+        Each dependent coordinate's column is added to its independent (root) coordinate's column,
+        times d q_dep / d q_root, then set to 0. ``X`` has shape (N, ..., n) for ``q`` (N, n).
+        """
+        if not self.couplers:
+            return X
+        G = self.dependent_derivatives(q)
+        extra = (slice(None),) + (None,) * (X.ndim - 2)
+        for d in np.nonzero(self.dependent)[0]:
+            X[..., self.root_of[d]] += X[..., d] * G[extra + (d,)]
+            X[..., d] = 0.0
+        return X
 
     def joint_values(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Pinocchio joint values v = f(q) and dv/dq, both (N, n_joints)."""
@@ -291,7 +349,7 @@ class Kinematics:
         st = self.forward(q)
         b = self.bodies.index(body)
         x = self.point_positions(st, b, pt[None, :])[:, 0]
-        return self._point_jacobian(st, b, x)
+        return self.chain_dependent(self._point_jacobian(st, b, x), st.q)
 
     def _point_jacobian(self, st: KinematicsState, b: int, x: np.ndarray) -> np.ndarray:
         N = x.shape[0]
@@ -307,15 +365,16 @@ class Kinematics:
         """Body placements from Pinocchio itself, one configuration at a time (reference).
 
         Returns:
-            (R, p): (N, n_bodies, 3, 3) and (N, n_bodies, 3).
+            (R, p): (N, n_bodies + 1, 3, 3) and (N, n_bodies + 1, 3) (ground last, as in
+            :class:`KinematicsState`).
         """
         import pinocchio as pin  # noqa: PLC0415
 
         q = self.as_q(q, warn_range=False)
         v, _ = self.joint_values(q)
         N = q.shape[0]
-        R = np.empty((N, len(self.bodies), 3, 3))
-        p = np.empty((N, len(self.bodies), 3))
+        R = np.empty((N, len(self.frames), 3, 3))
+        p = np.empty((N, len(self.frames), 3))
         for k in range(N):
             pin.framesForwardKinematics(self.pin_model, self.pin_data, v[k])
             for b, fid in enumerate(self._body_frame_id):
@@ -342,4 +401,4 @@ class Kinematics:
             Jp = J6[:3] - np.cross(r, J6[3:].T).T  # velocity of the point = v_o + w x r
             Jq = Jp * dv[k][None, :]
             np.add.at(out[k].T, self._coord_of_joint, Jq.T)
-        return out
+        return self.chain_dependent(out, q)

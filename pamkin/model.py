@@ -22,6 +22,15 @@ class Model:
     arrays in :attr:`coordinates` order (or (n_coordinates,), or a mapping from
     coordinate names), in OpenSim units (radians, metres).
 
+    Coordinates coupled by a ``CoordinateCouplerConstraint`` (:attr:`dependent_coordinates`)
+    always follow their coupler: their columns of ``q`` are recomputed from the independent
+    coordinate (values given there are ignored). Moment arms and Jacobians about an independent
+    coordinate are total derivatives (coupling included, as OpenSim's); about a dependent
+    coordinate they are 0 by convention (it is not a degree of freedom). OpenSim's
+    ``computeMomentArm`` about a dependent coordinate equals pamkin's moment arm about the
+    independent one divided by the coupler slope d q_dep / d q_indep (which explodes where the
+    slope is near 0).
+
     Attributes:
         osim: The imported model description.
         urdf_path: The generated URDF.
@@ -44,6 +53,15 @@ class Model:
         self.kinematics = Kinematics(osim, self.pin_model)
         self.paths = PathSet(self.kinematics, [m.name for m in osim.muscles],
                              [m.points for m in osim.muscles])
+        # sparse (muscle, coordinate) pairs after the coupling: a dependent coordinate's pairs move
+        # to its independent (root) coordinate
+        kin = self.kinematics
+        part = self.paths.pairs
+        out_pairs = sorted({(int(m), int(kin.root_of[c])) for m, c in part})
+        self._pairs = np.array(out_pairs, dtype=int).reshape(-1, 2)
+        index = {pq: k for k, pq in enumerate(out_pairs)}
+        self._pair_out = np.array([index[(int(m), int(kin.root_of[c]))] for m, c in part], dtype=int)
+        self._pair_coord = part[:, 1].copy() if len(part) else np.zeros(0, dtype=int)
         self._fast = None
         if engine == "compiled":
             from .fastpaths import FastPaths  # noqa: PLC0415
@@ -68,6 +86,16 @@ class Model:
     def coordinates(self) -> list[str]:
         """OpenSim coordinate names in model (CoordinateSet) order."""
         return list(self.kinematics.coordinates)
+
+    @property
+    def dependent_coordinates(self) -> dict[str, str]:
+        """``{dependent coordinate: its independent coordinate}`` of the CoordinateCouplerConstraints."""
+        return {k.dependent: k.independent for _, _, k in self.kinematics.couplers}
+
+    @property
+    def independent_coordinates(self) -> list[str]:
+        """The coordinates that are degrees of freedom (all but the dependent ones), model order."""
+        return [c for c, d in zip(self.coordinates, self.kinematics.dependent) if not d]
 
     @property
     def bodies(self) -> list[str]:
@@ -109,11 +137,22 @@ class Model:
         q = self.kinematics.as_q(q)
         if self._fast is not None:
             L, R = self._fast.evaluate(q, moment_arms)
+        else:
+            parts = [self.paths.evaluate(self.kinematics.forward(q[i:i + chunk], warn_range=False), moment_arms)
+                     for i in range(0, max(len(q), 1), chunk)]
+            L = np.concatenate([p.lengths for p in parts]) if parts else np.zeros((0, len(self.paths.names)))
+            R = np.concatenate([p.moment_arms for p in parts]) if moment_arms else None
+        if L.shape[0] != len(q):     # no configurations
+            L = np.zeros((len(q), len(self.paths.names)))
+            R = np.zeros((len(q), len(self.paths.pairs))) if moment_arms else None
+        if not self.kinematics.couplers:
             return PathResult(L, self.paths.pairs, R)
-        parts = [self.paths.evaluate(self.kinematics.forward(q[i:i + chunk], warn_range=False), moment_arms)
-                 for i in range(0, max(len(q), 1), chunk)]
-        return PathResult(np.concatenate([p.lengths for p in parts]), self.paths.pairs,
-                          np.concatenate([p.moment_arms for p in parts]) if moment_arms else None)
+        if R is None:
+            return PathResult(L, self._pairs, None)
+        G = self.kinematics.dependent_derivatives(q)
+        out = np.zeros((len(q), len(self._pairs)))
+        np.add.at(out.T, self._pair_out, (R * G[:, self._pair_coord]).T)
+        return PathResult(L, self._pairs, out)
 
     def lengths(self, q: ConfigLike) -> np.ndarray:
         """Musculotendon path lengths (N, n_muscles) [m]."""
@@ -123,7 +162,7 @@ class Model:
         """Moment arms −∂L/∂q (N, n_muscles, n_coordinates) [m; m/m for translations]."""
         return self.path_result(q).dense_moment_arms(len(self.coordinates))
 
-    def _check_forces(self) -> ThelenParams:
+    def _check_forces(self) -> ThelenParams | None:
         if self._unsupported_force:
             m = self._unsupported_force[0]
             raise UnsupportedFeatureError(
@@ -131,8 +170,7 @@ class Model:
                 f"{len(self._unsupported_force)} muscle(s) are {m.kind} (kinematics, lengths and moment "
                 "arms work; use the gait2392_thelen2003muscle.osim variant for forces)",
                 element=m.kind, component=m.name)
-        assert self.thelen_params is not None
-        return self.thelen_params
+        return self.thelen_params     # None only for a model without muscles
 
     def evaluate(self, q: ConfigLike, activation: float | np.ndarray = 1.0,
                  rigid_tendon: bool = False) -> MuscleState:
@@ -145,6 +183,8 @@ class Model:
         """
         params = self._check_forces()
         res = self.path_result(q)
+        if params is None:      # a model without muscles
+            return MuscleState(res, np.zeros(res.lengths.shape), None)
         eq = equilibrium(res.lengths, params, activation, rigid_tendon=rigid_tendon)
         return MuscleState(res, eq.tendon_force, eq)
 
@@ -167,6 +207,8 @@ class Model:
         """Static (zero fibre velocity) tendon forces (N, n_muscles) [N], OpenSim's equilibrium."""
         params = self._check_forces()
         L = self.lengths(q)
+        if params is None:      # a model without muscles
+            return np.zeros(L.shape)
         return tendon_force(L, params, activation, rigid_tendon=rigid_tendon)
 
     def torques(self, q: ConfigLike, activation: float | np.ndarray = 1.0,
@@ -234,10 +276,15 @@ class Model:
         return q, shape
 
     def random_q(self, n: int, seed: int | None = 0) -> np.ndarray:
-        """``n`` configurations uniform over every coordinate's range (fixed seed by default)."""
+        """``n`` configurations uniform over every coordinate's range (fixed seed by default); locked
+        coordinates keep their default value (OpenSim does not change a locked coordinate) and
+        dependent coordinates follow their couplers."""
         rng = np.random.default_rng(seed)
         lo, hi = self.kinematics.ranges.T
-        return lo + (hi - lo) * rng.random((n, len(lo)))
+        q = lo + (hi - lo) * rng.random((n, len(lo)))
+        locked = [i for i, c in enumerate(self.osim.coordinates) if c.locked]
+        q[:, locked] = self.kinematics.defaults[locked]
+        return self.kinematics.fill_dependent(q)
 
 
 def load_osim(path: str | os.PathLike, engine: str = "compiled",

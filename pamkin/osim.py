@@ -1,19 +1,29 @@
 """Read an OpenSim 4.x ``.osim`` model file into typed Python objects.
 
-Supported (everything Gait2392 uses, plus the common simple joints):
+Supported:
 
-* ``Body`` (mass properties and attached ``Mesh`` geometry), ``Ground``.
-* ``CustomJoint`` with ``SpatialTransform`` (``TransformAxis`` with ``Constant``,
+* ``Body`` (mass properties and attached ``Mesh`` geometry), ``Ground``, and
+  ``PhysicalOffsetFrame`` components of bodies and ground (path points and joints may use them).
+* Joints: ``CustomJoint`` with ``SpatialTransform`` (``TransformAxis`` with ``Constant``,
   ``LinearFunction``, ``SimmSpline``, ``PolynomialFunction``, ``MultiplierFunction``),
-  ``PinJoint``, ``WeldJoint``; parent/child ``PhysicalOffsetFrame`` with translation
+  ``PinJoint``, ``SliderJoint``, ``UniversalJoint``, ``GimbalJoint``, ``BallJoint``,
+  ``FreeJoint``, ``PlanarJoint``, ``WeldJoint`` (each read as the equivalent sequence of
+  TransformAxes, see :data:`JOINT_AXES`); parent/child ``PhysicalOffsetFrame`` with translation
   and body-fixed XYZ orientation.
 * ``Coordinate`` (name, range, default value, locked, clamped).
+* ``CoordinateCouplerConstraint`` (one independent coordinate): the dependent coordinate is
+  ``scale_factor · f(independent)``.
 * Muscles ``Thelen2003Muscle`` and ``Millard2012EquilibriumMuscle`` with
-  ``PathPoint``, ``ConditionalPathPoint`` and ``MovingPathPoint`` paths; ``PathActuator`` paths
-  too (read as muscles of kind ``"PathActuator"``: lengths and moment arms, no muscle forces).
+  ``PathPoint``, ``ConditionalPathPoint`` and ``MovingPathPoint`` paths (points on bodies, ground
+  or offset frames); every other path-bearing force (:data:`PATH_ONLY_CLASSES`: ``PathActuator``,
+  ``PathSpring``, other muscle classes) loads as a path of its class: lengths and moment arms,
+  no muscle forces.
 
-Anything else that changes kinematics or muscle paths (wrap objects, constraints,
-other joint, function, path-point or force types) raises
+Forces without a path (coordinate actuators, limit forces, bushings, contact, springs),
+contact geometry, controllers, probes and markers cannot change kinematics or muscle paths:
+they are skipped with one :class:`SkippedComponentsWarning` listing them.
+Anything else that changes kinematics or muscle paths (wrap objects, other constraints,
+other joint, function or path-point types) raises
 :class:`~pamkin.errors.UnsupportedFeatureError` naming the file, the element and
 the component: pamkin never approximates silently.
 """
@@ -21,6 +31,8 @@ the component: pamkin never approximates silently.
 from __future__ import annotations
 
 import math
+import re
+import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,6 +57,40 @@ MUSCLE_CLASSES = ("Thelen2003Muscle", "Millard2012EquilibriumMuscle")
 #: parameters): lengths and moment arms work, forces need a muscle model. ``pamkin export-osim``
 #: writes PAMs as PathActuators.
 PATH_ACTUATOR_CLASSES = ("PathActuator",)
+#: Other forces with a ``GeometryPath`` that load as paths (lengths and moment arms; no forces).
+PATH_ONLY_CLASSES = ("PathSpring", "Schutte1993Muscle_Deprecated", "Delp1990Muscle_Deprecated",
+                     "Thelen2003Muscle_Deprecated", "RigidTendonMuscle", "DeGrooteFregly2016Muscle",
+                     "Millard2012AccelerationMuscle", "McKibbenActuator", "Ligament",
+                     "Blankevoort1991Ligament")
+#: Scalar properties read from path-only forces when present.
+PATH_ONLY_PROPERTIES = ("max_isometric_force", "optimal_fiber_length", "tendon_slack_length",
+                        "pennation_angle_at_optimal", "optimal_force", "resting_length", "stiffness",
+                        "dissipation")
+
+#: The TransformAxes equivalent to OpenSim's fixed joint types: (axis name, unit axis, index of the
+#: joint's coordinate). Translations act along axes of the parent frame F, rotations are body-fixed
+#: in the listed order (Simbody's Pin, Slider, Universal, Gimbal and Ball/Free with Euler angles,
+#: Planar: rotation about Z then translation in F's X-Y plane).
+JOINT_AXES: dict[str, tuple[tuple[str, tuple[float, float, float], int], ...]] = {
+    "PinJoint": (("rotation1", (0.0, 0.0, 1.0), 0),),
+    "SliderJoint": (("translation1", (1.0, 0.0, 0.0), 0),),
+    "UniversalJoint": (("rotation1", (1.0, 0.0, 0.0), 0), ("rotation2", (0.0, 1.0, 0.0), 1)),
+    "GimbalJoint": (("rotation1", (1.0, 0.0, 0.0), 0), ("rotation2", (0.0, 1.0, 0.0), 1),
+                    ("rotation3", (0.0, 0.0, 1.0), 2)),
+    "BallJoint": (("rotation1", (1.0, 0.0, 0.0), 0), ("rotation2", (0.0, 1.0, 0.0), 1),
+                  ("rotation3", (0.0, 0.0, 1.0), 2)),
+    "FreeJoint": (("rotation1", (1.0, 0.0, 0.0), 0), ("rotation2", (0.0, 1.0, 0.0), 1),
+                  ("rotation3", (0.0, 0.0, 1.0), 2), ("translation1", (1.0, 0.0, 0.0), 3),
+                  ("translation2", (0.0, 1.0, 0.0), 4), ("translation3", (0.0, 0.0, 1.0), 5)),
+    "PlanarJoint": (("rotation1", (0.0, 0.0, 1.0), 0), ("translation1", (1.0, 0.0, 0.0), 1),
+                    ("translation2", (0.0, 1.0, 0.0), 2)),
+    "WeldJoint": (),
+}
+JOINT_CLASSES = ("CustomJoint",) + tuple(JOINT_AXES)
+
+
+class SkippedComponentsWarning(UserWarning):
+    """Components of an ``.osim`` file that cannot change kinematics or muscle paths were skipped."""
 
 #: PathActuator properties (name in the file -> OpenSim's default when absent).
 PATH_ACTUATOR_PROPERTIES: dict[str, float] = {"optimal_force": 1.0, "min_control": -math.inf,
@@ -152,6 +198,31 @@ class Coordinate:
 
 
 @dataclass(frozen=True)
+class CoordinateCoupler:
+    """A ``CoordinateCouplerConstraint``: ``dependent = scale_factor · function(independent)``.
+
+    Attributes:
+        name: Constraint name.
+        dependent: The dependent coordinate.
+        independent: The independent coordinate.
+        function: The coupling function.
+        scale_factor: OpenSim's ``scale_factor``.
+    """
+
+    name: str
+    dependent: str
+    independent: str
+    function: ScalarFunction
+    scale_factor: float = 1.0
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        return self.scale_factor * self.function.value(x)
+
+    def derivative(self, x: np.ndarray) -> np.ndarray:
+        return self.scale_factor * self.function.derivative(x)
+
+
+@dataclass(frozen=True)
 class Joint:
     """A joint between a parent and a child body.
 
@@ -162,7 +233,7 @@ class Joint:
 
     Attributes:
         name: Joint name.
-        kind: ``"CustomJoint"``, ``"PinJoint"`` or ``"WeldJoint"``.
+        kind: The OpenSim class (``"CustomJoint"``, ``"PinJoint"``, ... see :data:`JOINT_CLASSES`).
         parent_frame: Joint frame F, fixed in the parent body.
         child_frame: Joint frame M, fixed in the child body.
         axes: Transform axes in OpenSim order (translations first when applied).
@@ -293,8 +364,10 @@ class OsimModel:
         joints: Joints in file order.
         coordinates: Coordinates in OpenSim's CoordinateSet order (joint order, then
             order within each joint).
-        muscles: Muscles in ForceSet order.
+        muscles: Muscles (and other path-bearing forces) in ForceSet order.
         credits: The model's credits string.
+        couplers: CoordinateCouplerConstraints (dependent coordinates follow them).
+        skipped: ``"Class name"`` of every component skipped on import.
     """
 
     path: str
@@ -304,6 +377,8 @@ class OsimModel:
     coordinates: tuple[Coordinate, ...]
     muscles: tuple[Muscle, ...]
     credits: str = ""
+    couplers: tuple[CoordinateCoupler, ...] = ()
+    skipped: tuple[str, ...] = ()
 
     def coordinate(self, name: str) -> Coordinate:
         """The coordinate called ``name`` (KeyError listing valid names otherwise)."""
@@ -356,7 +431,7 @@ class _Reader:
         return child.text.strip()
 
     def floats(self, el: ET.Element, tag: str, n: int | None = None,
-               default: str | None = None) -> tuple[float, ...]:
+               default: str | None = None, allow_inf: bool = False) -> tuple[float, ...]:
         raw = self.text(el, tag, default)
         try:
             vals = tuple(float(v) for v in raw.split())
@@ -364,7 +439,7 @@ class _Reader:
             raise self.err(f"<{tag}> is not a list of numbers: {raw!r}", el) from None
         if n is not None and len(vals) != n:
             raise self.err(f"<{tag}> must have {n} numbers, has {len(vals)}", el)
-        if not all(math.isfinite(v) for v in vals):
+        if not all(math.isfinite(v) or (allow_inf and not math.isnan(v)) for v in vals):
             raise self.err(f"<{tag}> has a non-finite number: {raw!r}", el)
         return vals
 
@@ -427,30 +502,55 @@ def load_osim_file(path: str | Path) -> OsimModel:
     if not path.is_file():
         raise OsimError(str(path), "file not found")
     try:
-        root = ET.parse(path).getroot()
+        # OpenSim writes tags such as <HuntCrossleyForce::ContactParametersSet>, which XML parsers
+        # reject: rename them (pamkin never reads them)
+        text = _NESTED_TAG.sub(r"\1\2__\3", path.read_bytes().decode("utf-8", errors="replace"))
+        root = ET.fromstring(text)
     except ET.ParseError as e:
         raise OsimError(str(path), f"not a well-formed .osim (XML) file: {e}") from None
     model_el = root.find("Model") if root.tag == "OpenSimDocument" else None
     if model_el is None:
         raise OsimError(str(path), "no <OpenSimDocument><Model> element")
-    version = int(root.get("Version", "0") or 0)
+    try:
+        version = int(root.get("Version", "0") or 0)
+    except ValueError:
+        version = 0
     if version < 40000:
         raise UnsupportedFeatureError(
-            str(path), f"OpenSimDocument Version {version} predates OpenSim 4.0; re-save it with OpenSim 4.x",
-            element="OpenSimDocument")
+            str(path), f"OpenSimDocument Version {version or '(none)'} predates OpenSim 4.0; pamkin reads "
+            "OpenSim 4.x files. Convert it with OpenSim 4: `opensim-cmd update-file OLD.osim NEW.osim`, or "
+            "in Python `opensim.Model('OLD.osim').printToXML('NEW.osim')`, or open it in the OpenSim 4 "
+            "application and save it again", element="OpenSimDocument")
 
+    skipped: list[str] = []
     ground = model_el.find("Ground")
     _check_no_wrap(rd, ground)
+    frames = _read_frames(rd, model_el)
     bodies = _read_bodies(rd, model_el)
     body_names = {b.name for b in bodies} | {GROUND}
-    joints = _read_joints(rd, model_el, body_names)
+    joints = _read_joints(rd, model_el, body_names, frames)
     _check_tree(rd, bodies, joints)
     coordinates = tuple(c for j in joints for c in j[1])
     joints_only = tuple(j[0] for j in joints)
     coord_names = {c.name for c in coordinates}
-    _check_empty_set(rd, model_el, "ConstraintSet")
-    _check_empty_set(rd, model_el, "ContactGeometrySet", ok_if_missing=True)
-    muscles = _read_muscles(rd, model_el, body_names, coord_names)
+    couplers = _read_constraints(rd, model_el, coord_names, skipped)
+    for tag in ("ContactGeometrySet", "ControllerSet", "ProbeSet", "MarkerSet"):
+        objs = model_el.find(f"{tag}/objects")
+        skipped += [f"{o.tag} {o.get('name')!r}" for o in (objs if objs is not None else [])]
+    comps = model_el.find("components")
+    for c in (comps if comps is not None else []):
+        if c.tag in ("PhysicalOffsetFrame", "Marker") or c.tag.endswith("Controller") or c.tag.endswith("Probe"):
+            skipped.append(f"{c.tag} {c.get('name')!r}")
+        else:
+            raise rd.err(f"model component <{c.tag}> is not supported", c, unsupported=True)
+    muscles = _read_muscles(rd, model_el, body_names, coord_names, frames, skipped)
+    if skipped:
+        counts: dict[str, int] = {}
+        for s_ in skipped:
+            counts[s_.split()[0]] = counts.get(s_.split()[0], 0) + 1
+        warnings.warn(SkippedComponentsWarning(
+            f"{path}: skipped {len(skipped)} component(s) that cannot change kinematics or muscle paths: "
+            + ", ".join(f"{n} {k}" for k, n in counts.items()) + " (" + ", ".join(skipped) + ")"), stacklevel=2)
     credits_el = model_el.find("credits")
     return OsimModel(
         path=str(path),
@@ -460,7 +560,123 @@ def load_osim_file(path: str | Path) -> OsimModel:
         coordinates=coordinates,
         muscles=muscles,
         credits=(credits_el.text or "").strip() if credits_el is not None else "",
+        couplers=couplers,
+        skipped=tuple(skipped),
     )
+
+
+_NESTED_TAG = re.compile(r"(</?)([A-Za-z_][\w.]*)::([A-Za-z_]\w*)")
+
+#: Constraint classes pamkin implements.
+CONSTRAINT_CLASSES = ("CoordinateCouplerConstraint",)
+
+
+def _read_constraints(rd: _Reader, model_el: ET.Element, coord_names: set[str],
+                      skipped: list[str]) -> tuple[CoordinateCoupler, ...]:
+    objs = model_el.find("ConstraintSet/objects")
+    out: list[CoordinateCoupler] = []
+    for c in (objs if objs is not None else []):
+        enforced = rd.flag(c, "isEnforced", True) if c.find("isEnforced") is not None else \
+            not rd.flag(c, "isDisabled", False)
+        if not enforced:
+            skipped.append(f"{c.tag} {c.get('name')!r} (not enforced)")
+            continue
+        if c.tag not in CONSTRAINT_CLASSES:
+            raise rd.err(f"constraint type <{c.tag}> is not supported (constraints pamkin implements: "
+                         f"{', '.join(CONSTRAINT_CLASSES)})", c, unsupported=True)
+        indep = (rd.text(c, "independent_coordinate_names", "") or "").split()
+        dep = rd.text(c, "dependent_coordinate_name", "").strip()
+        if len(indep) != 1:
+            raise rd.err(f"coupler with {len(indep)} independent coordinates; only one is supported", c,
+                         unsupported=True)
+        for cn in indep + [dep]:
+            if cn not in coord_names:
+                raise rd.err(f"coupler names unknown coordinate {cn!r}", c)
+        if dep == indep[0]:
+            raise rd.err("coupler's dependent and independent coordinates are the same", c)
+        fn_el = c.find("coupled_coordinates_function")
+        if fn_el is None or len(list(fn_el)) != 1:
+            raise rd.err("coupler needs one function in <coupled_coordinates_function>", c)
+        fn = rd.function(list(fn_el)[0], c)
+        scale = rd.floats(c, "scale_factor", 1, "1")[0]
+        if any(k.dependent == dep for k in out):
+            raise rd.err(f"coordinate {dep!r} is the dependent coordinate of two couplers", c)
+        out.append(CoordinateCoupler(c.get("name") or "", dep, indep[0], fn, scale))
+    # no cycles
+    dep_of = {k.dependent: k.independent for k in out}
+    for k in out:
+        seen, cur = set(), k.dependent
+        while cur in dep_of:
+            if cur in seen:
+                raise OsimError(str(rd.path), "couplers form a cycle", element="CoordinateCouplerConstraint",
+                                component=k.name)
+            seen.add(cur)
+            cur = dep_of[cur]
+    return tuple(out)
+
+
+def _read_frames(rd: _Reader, model_el: ET.Element) -> dict[str, OffsetFrame]:
+    """PhysicalOffsetFrame components of ground and bodies, by absolute path and by (unique) name."""
+    raw: dict[str, tuple[str, ET.Element]] = {}
+    owners = [("/ground", model_el.find("Ground"))]
+    bodyset = model_el.find("BodySet/objects")
+    owners += [(f"/bodyset/{b.get('name')}", b) for b in (bodyset if bodyset is not None else [])]
+    for owner_path, owner in owners:
+        if owner is None:
+            continue
+        comps = owner.find("components")
+        for fr in (comps if comps is not None else []):
+            if fr.tag != "PhysicalOffsetFrame":
+                raise rd.err(f"<{fr.tag}> component of {owner.tag} {owner.get('name')!r} is not supported", fr,
+                             unsupported=True)
+            raw[f"{owner_path}/{fr.get('name')}"] = (owner_path, fr)
+    out: dict[str, OffsetFrame] = {}
+
+    def resolve(key: str, depth: int = 0) -> OffsetFrame:
+        if key in out:
+            return out[key]
+        if key == "/ground" or key.startswith("/bodyset/") and key.count("/") == 2:
+            b = key.split("/")[-1]
+            return OffsetFrame(b, b, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+        if key not in raw or depth > 8:
+            raise rd.err(f"frame {key!r} not found")
+        owner_path, fr = raw[key]
+        parent_ref = rd.text(fr, "socket_parent", "..").strip()
+        if parent_ref in ("..", ""):
+            parent_key = owner_path
+        elif parent_ref.startswith("/"):
+            parent_key = parent_ref.rstrip("/")
+        else:
+            parent_key = f"{owner_path}/{parent_ref}".rstrip("/")
+        base = resolve(parent_key, depth + 1)
+        own = OffsetFrame(fr.get("name") or "", base.body, rd.floats(fr, "translation", 3, "0 0 0"),
+                          rd.floats(fr, "orientation", 3, "0 0 0"))
+        T = base.transform() @ own.transform()
+        out[key] = OffsetFrame(own.name, base.body, tuple(float(v) for v in T[:3, 3]),  # type: ignore[arg-type]
+                               _xyz_from_matrix(T[:3, :3]))
+        return out[key]
+
+    for key in raw:
+        resolve(key)
+    names: dict[str, list[str]] = {}
+    for key in raw:
+        names.setdefault(key.split("/")[-1], []).append(key)
+    for n, keys in names.items():
+        if len(keys) == 1:
+            out.setdefault(n, out[keys[0]])
+    return out
+
+
+def _frame_of(rd: _Reader, ref: str, frames: dict[str, OffsetFrame], body_names: set[str]) -> OffsetFrame | None:
+    """The body frame or offset frame an OpenSim socket path names (None: not found)."""
+    ref = ref.strip().rstrip("/")
+    if ref in frames:
+        return frames[ref]
+    key = _last(ref)
+    if key in body_names and (ref == key or ref in (f"/bodyset/{key}", "/ground", f"/{key}")
+                              or ref.endswith(f"/{key}") and key not in frames):
+        return OffsetFrame(key, key, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    return frames.get(key)
 
 
 def _check_no_wrap(rd: _Reader, owner: ET.Element | None) -> None:
@@ -503,8 +719,6 @@ def _read_bodies(rd: _Reader, model_el: ET.Element) -> tuple[Body, ...]:
             scale = rd.floats(mesh, "scale_factors", 3, "1 1 1")
             frame = OffsetFrame(name, name, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
             meshes.append(MeshGeometry(rd.text(mesh, "mesh_file"), scale, frame))
-        if b.find("components") is not None and len(list(b.find("components"))):
-            raise rd.err("Body <components> are not supported", b, unsupported=True)
         out.append(Body(
             name=name,
             mass=rd.floats(b, "mass", 1, "0")[0],
@@ -516,22 +730,24 @@ def _read_bodies(rd: _Reader, model_el: ET.Element) -> tuple[Body, ...]:
 
 
 def _resolve_frame(rd: _Reader, joint_el: ET.Element, ref: str, frames: dict[str, ET.Element],
-                   body_names: set[str], depth: int = 0) -> OffsetFrame:
+                   body_names: set[str], depth: int = 0,
+                   model_frames: dict[str, OffsetFrame] | None = None) -> OffsetFrame:
     """Resolve a joint's socket to an offset frame fixed in a body."""
     key = _last(ref)
     if key in frames and depth < 8:
         fr = frames[key]
         parent_ref = rd.text(fr, "socket_parent")
         base = _resolve_frame(rd, joint_el, parent_ref, {k: v for k, v in frames.items() if k != key},
-                              body_names, depth + 1)
+                              body_names, depth + 1, model_frames)
         own = OffsetFrame(key, base.body, rd.floats(fr, "translation", 3, "0 0 0"),
                           rd.floats(fr, "orientation", 3, "0 0 0"))
         if base.translation == (0.0, 0.0, 0.0) and base.orientation == (0.0, 0.0, 0.0):
             return own
         T = base.transform() @ own.transform()
         return OffsetFrame(key, base.body, tuple(float(v) for v in T[:3, 3]), _xyz_from_matrix(T[:3, :3]))
-    if key in body_names:
-        return OffsetFrame(key, key, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    found = _frame_of(rd, ref, model_frames or {}, body_names)
+    if found is not None:
+        return found
     raise rd.err(f"frame reference {ref!r} names no body, ground or offset frame of this joint", joint_el)
 
 
@@ -546,16 +762,16 @@ def _xyz_from_matrix(R: np.ndarray) -> tuple[float, float, float]:
 _AXIS_NAMES = ("rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3")
 
 
-def _read_joints(rd: _Reader, model_el: ET.Element,
-                 body_names: set[str]) -> list[tuple[Joint, tuple[Coordinate, ...]]]:
+def _read_joints(rd: _Reader, model_el: ET.Element, body_names: set[str],
+                 model_frames: dict[str, OffsetFrame] | None = None) -> list[tuple[Joint, tuple[Coordinate, ...]]]:
     jointset = model_el.find("JointSet/objects")
     if jointset is None:
         raise OsimError(str(rd.path), "no <JointSet><objects>", element="Model")
     out = []
     for j in jointset:
         name = j.get("name") or ""
-        if j.tag not in ("CustomJoint", "PinJoint", "WeldJoint"):
-            raise rd.err(f"joint type <{j.tag}> is not supported (CustomJoint, PinJoint, WeldJoint are)",
+        if j.tag not in JOINT_CLASSES:
+            raise rd.err(f"joint type <{j.tag}> is not supported (supported: {', '.join(JOINT_CLASSES)})",
                          j, unsupported=True)
         frames = {}
         frames_el = j.find("frames")
@@ -564,8 +780,10 @@ def _read_joints(rd: _Reader, model_el: ET.Element,
                 if fr.tag != "PhysicalOffsetFrame":
                     raise rd.err(f"<{fr.tag}> joint frame is not supported", fr, unsupported=True)
                 frames[fr.get("name")] = fr
-        parent = _resolve_frame(rd, j, rd.text(j, "socket_parent_frame"), frames, body_names)
-        child = _resolve_frame(rd, j, rd.text(j, "socket_child_frame"), frames, body_names)
+        parent = _resolve_frame(rd, j, rd.text(j, "socket_parent_frame"), frames, body_names,
+                                model_frames=model_frames)
+        child = _resolve_frame(rd, j, rd.text(j, "socket_child_frame"), frames, body_names,
+                               model_frames=model_frames)
         if child.body == GROUND:
             raise rd.err("a joint's child cannot be ground", j)
         coords = []
@@ -630,13 +848,14 @@ def _read_joints(rd: _Reader, model_el: ET.Element,
                 uses = [a for a in axes if cn in a.coordinates]
                 if uses and all(not a.is_rotation for a in uses):
                     rotational[cn] = False
-        elif j.tag == "PinJoint":
-            if len(cnames) != 1:
-                raise rd.err(f"PinJoint must have 1 coordinate, has {len(cnames)}", j)
-            axes = [TransformAxis("rotation1", cnames, (0.0, 0.0, 1.0), LinearFunction(1.0, 0.0))]
-        elif j.tag == "WeldJoint":
-            if cnames:
-                raise rd.err("WeldJoint cannot have coordinates", j)
+        else:
+            spec = JOINT_AXES[j.tag]
+            if len(cnames) != len(spec):
+                raise rd.err(f"{j.tag} must have {len(spec)} coordinate(s), has {len(cnames)}", j)
+            axes = [TransformAxis(an, (cnames[k],), ax, LinearFunction(1.0, 0.0)) for an, ax, k in spec]
+            for an, _, k in spec:
+                if an.startswith("translation"):
+                    rotational[cnames[k]] = False
         for c in coords:
             if c["pf"] is not None and len(list(c["pf"])):
                 raise rd.err("prescribed_function is not supported", c["el"], unsupported=True)
@@ -686,32 +905,48 @@ def _check_tree(rd: _Reader, bodies: tuple[Body, ...], joints) -> None:
 
 
 def _read_muscles(rd: _Reader, model_el: ET.Element, body_names: set[str],
-                  coord_names: set[str]) -> tuple[Muscle, ...]:
+                  coord_names: set[str], frames: dict[str, OffsetFrame] | None = None,
+                  skipped: list[str] | None = None) -> tuple[Muscle, ...]:
     forceset = model_el.find("ForceSet/objects")
     if forceset is None:
         return ()
     out = []
+    path_classes = MUSCLE_CLASSES + PATH_ACTUATOR_CLASSES + PATH_ONLY_CLASSES
     for f in forceset:
         name = f.get("name") or ""
-        if f.tag not in MUSCLE_CLASSES + PATH_ACTUATOR_CLASSES:
-            raise rd.err(f"force type <{f.tag}> is not supported (muscle classes: "
-                         f"{', '.join(MUSCLE_CLASSES)}; path actuators: {', '.join(PATH_ACTUATOR_CLASSES)})",
-                         f, unsupported=True)
         gp = f.find("GeometryPath")
+        if gp is None and f.tag not in path_classes:
+            if skipped is not None:   # no path: cannot change kinematics or muscle paths
+                skipped.append(f"{f.tag} {name!r}")
+                continue
+        if f.tag not in path_classes:
+            raise rd.err(f"force type <{f.tag}> has a path but is not supported (path classes: "
+                         f"{', '.join(path_classes)})", f, unsupported=True)
         if gp is None:
             raise rd.err("muscle without <GeometryPath>", f)
+        if f.tag == "Thelen2003Muscle" and f.find("ignore_tendon_compliance") is not None \
+                and rd.flag(f, "ignore_tendon_compliance", False):
+            raise rd.err("ignore_tendon_compliance=true: OpenSim 4.6 refuses it for Thelen2003Muscle "
+                         "(\"Thelen2003Muscle::ignore_tendon_compliance flag is not currently implemented\"); "
+                         "set it to false (pamkin's rigid-tendon forces: rigid_tendon=True)", f, unsupported=True)
         pws = gp.find("PathWrapSet/objects")
         if pws is not None and len(list(pws)):
             raise rd.err("path wrapping (PathWrapSet) is not supported", f, unsupported=True)
         pps = gp.find("PathPointSet/objects")
         if pps is None or len(list(pps)) < 2:
             raise rd.err("path needs at least 2 points", f)
-        points = [_read_point(rd, p, f, body_names, coord_names) for p in pps]
+        points = [_read_point(rd, p, f, body_names, coord_names, frames or {}) for p in pps]
         if isinstance(points[0], ConditionalPathPoint) or isinstance(points[-1], ConditionalPathPoint):
             raise rd.err("first and last path points must not be conditional", f, unsupported=True)
+        params = {}
+        if f.tag in PATH_ONLY_CLASSES:
+            for key in PATH_ONLY_PROPERTIES:
+                if f.find(key) is not None:
+                    params[key] = rd.floats(f, key, 1)[0]
+            out.append(Muscle(name, f.tag, tuple(points), params))
+            continue
         defaults = {"Thelen2003Muscle": THELEN_PROPERTIES, "PathActuator": PATH_ACTUATOR_PROPERTIES}.get(
             f.tag, MILLARD_PROPERTIES)
-        params = {}
         for key, default in defaults.items():
             el = f.find(key)
             if el is None:
@@ -719,20 +954,24 @@ def _read_muscles(rd: _Reader, model_el: ET.Element, body_names: set[str],
                     raise rd.err(f"missing <{key}>", f)
                 params[key] = default
             else:
-                params[key] = rd.floats(f, key, 1)[0]
+                params[key] = rd.floats(f, key, 1, allow_inf=key in ("min_control", "max_control"))[0]
         out.append(Muscle(name, f.tag, tuple(points), params))
     return tuple(out)
 
 
 def _read_point(rd: _Reader, p: ET.Element, muscle: ET.Element, body_names: set[str],
-                coord_names: set[str]) -> AnyPathPoint:
+                coord_names: set[str], frames: dict[str, OffsetFrame] | None = None) -> AnyPathPoint:
     name = p.get("name") or ""
     if p.tag not in ("PathPoint", "ConditionalPathPoint", "MovingPathPoint"):
         raise rd.err(f"path point type <{p.tag}> in muscle {muscle.get('name')!r} is not supported", p,
                      unsupported=True)
-    body = _last(rd.text(p, "socket_parent_frame"))
-    if body not in body_names:
-        raise rd.err(f"path point of muscle {muscle.get('name')!r} is on unknown body/frame {body!r}", p)
+    ref = rd.text(p, "socket_parent_frame")
+    frame = _frame_of(rd, ref, frames or {}, body_names)
+    if frame is None:
+        raise rd.err(f"path point of muscle {muscle.get('name')!r} is on unknown body/frame {_last(ref)!r}", p)
+    body = frame.body
+    offset = None if frame.name == frame.body and frame.translation == (0.0, 0.0, 0.0) \
+        and frame.orientation == (0.0, 0.0, 0.0) else frame.transform()
     if p.tag == "MovingPathPoint":
         fns, cns = [], []
         for axis in "xyz":
@@ -748,8 +987,12 @@ def _read_point(rd: _Reader, p: ET.Element, muscle: ET.Element, body_names: set[
                 raise rd.err(f"{axis}_location has no coordinate", p)
             fns.append(fn)
             cns.append(cn)
+        if offset is not None:
+            raise rd.err("MovingPathPoint on an offset frame is not supported", p, unsupported=True)
         return MovingPathPoint(name, body, tuple(fns), tuple(cns))  # type: ignore[arg-type]
     loc = rd.floats(p, "location", 3)
+    if offset is not None:
+        loc = tuple(float(v) for v in offset[:3, :3] @ np.array(loc) + offset[:3, 3])
     if p.tag == "ConditionalPathPoint":
         cref = rd.text(p, "socket_coordinate")
         cn = _last(cref)
@@ -831,7 +1074,7 @@ def point_from_dict(d: dict) -> AnyPathPoint:
 
 def model_to_dict(model: OsimModel) -> dict:
     """Lossless plain-data form of an imported model (what the project's YAML files hold)."""
-    return {
+    d = {
         "name": model.name,
         "source": Path(model.path).name,
         "credits": model.credits,
@@ -851,6 +1094,11 @@ def model_to_dict(model: OsimModel) -> dict:
         "muscles": [{"name": m.name, "kind": m.kind, "params": dict(m.params),
                      "points": [_point_to_dict(p) for p in m.points]} for m in model.muscles],
     }
+    if model.couplers:
+        d["couplers"] = [{"name": k.name, "dependent": k.dependent, "independent": k.independent,
+                          "function": function_to_dict(k.function), "scale_factor": k.scale_factor}
+                         for k in model.couplers]
+    return d
 
 
 def model_from_dict(d: dict, path: str = "<data>") -> OsimModel:
@@ -873,4 +1121,7 @@ def model_from_dict(d: dict, path: str = "<data>") -> OsimModel:
         muscles=tuple(Muscle(m["name"], m["kind"], tuple(point_from_dict(p) for p in m["points"]),
                              {k: float(v) for k, v in m["params"].items()}) for m in d["muscles"]),
         credits=d.get("credits", ""),
+        couplers=tuple(CoordinateCoupler(k["name"], k["dependent"], k["independent"],
+                                         function_from_dict(k["function"]), float(k.get("scale_factor", 1.0)))
+                       for k in d.get("couplers", [])),
     )

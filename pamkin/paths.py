@@ -132,8 +132,8 @@ class PathSet:
     def __init__(self, kin: Kinematics, names: Sequence[str], paths: Sequence[Sequence[AnyPathPoint]]):
         self.kin = kin
         self.names = list(names)
-        nb, nc = len(kin.bodies), len(kin.coordinates)
-        body_index = {b: i for i, b in enumerate(kin.bodies)}
+        nb, nc = len(kin.frames), len(kin.coordinates)
+        body_index = {b: i for i, b in enumerate(kin.frames)}   # bodies, then ground
         coord_index = {c: i for i, c in enumerate(kin.coordinates)}
 
         # unique points
@@ -335,7 +335,7 @@ class PathSet:
         kin = self.kin
         N = state.q.shape[0]
         wj, tj = self._joint_twists(state)
-        nb, nc = len(kin.bodies), len(kin.coordinates)
+        nb, nc = len(kin.frames), len(kin.coordinates)
         W = np.zeros((N, nb, nc, 3))
         T = np.zeros((N, nb, nc, 3))
         for b in range(nb):

@@ -110,8 +110,8 @@ def test_path_point_on_unknown_body(tmp_path, osim_text):
 
 def test_unknown_joint_type(tmp_path, osim_text):
     text = re.sub(r"<CustomJoint name=\"knee_l\">(.*?)</CustomJoint>",
-                  r'<BallJoint name="knee_l">\1</BallJoint>', osim_text, count=1, flags=re.S)
-    with pytest.raises(UnsupportedFeatureError, match=r'bad\.osim: <BallJoint name="knee_l">: joint type'):
+                  r'<EllipsoidJoint name="knee_l">\1</EllipsoidJoint>', osim_text, count=1, flags=re.S)
+    with pytest.raises(UnsupportedFeatureError, match=r'bad\.osim: <EllipsoidJoint name="knee_l">: joint type'):
         load_osim_file(_write(tmp_path, text))
 
 
@@ -128,7 +128,13 @@ def test_wrap_object_is_rejected(tmp_path, osim_text):
 def test_unsupported_muscle_class(tmp_path, osim_text):
     text = osim_text.replace('<Thelen2003Muscle name="glut_med1_r">', '<RigidTendonMuscle name="glut_med1_r">', 1)
     text = text.replace("</Thelen2003Muscle>", "</RigidTendonMuscle>", 1)
+    # other muscle classes load as paths (lengths, moment arms); their forces are refused
+    model = pamkin.load_osim(_write(tmp_path, text))
     with pytest.raises(UnsupportedFeatureError, match=r'<RigidTendonMuscle name="glut_med1_r">'):
+        model.tendon_forces(model.default_q)
+    text = text.replace('<RigidTendonMuscle name="glut_med1_r">', '<FancyMuscle name="glut_med1_r">', 1)
+    text = text.replace("</RigidTendonMuscle>", "</FancyMuscle>", 1)
+    with pytest.raises(UnsupportedFeatureError, match=r'<FancyMuscle name="glut_med1_r">'):
         load_osim_file(_write(tmp_path, text))
 
 
