@@ -19,11 +19,15 @@ Example (every key optional; these are the defaults)::
     primary = 25                 # 1-D sweep of the primary coordinate (others 0)
     secondary = 7                # per axis of each 2-D grid primary x secondary
     constraint = 5               # per axis of the full grid over primary + secondaries (strain limits)
+    random = 100                 # multi-joint training poses per actuator (own random stream, never the audit's)
+    gait = true                  # also train on the walking trial (between its frames; both legs, mirrored)
 
     [weights]
     primary = 1.0
     secondary = 0.5
     regularization = 0.001       # pull towards the seed route, per (region size)^2
+    whole_vector = 1.0           # torque error about every coordinate crossed, on the training poses
+    mass = 0.02                  # outer loop: objective penalty per kg of PAM (diameter, parallel count)
 
     [limits]
     region_m = 0.05              # half-width of every route point's box around its seed [m]
@@ -33,6 +37,8 @@ Example (every key optional; these are the defaults)::
     pretension_scale = 1.0       # stretch limit = pretension_scale * Festo's limit
     fix_lengths = false          # keep the seed resting and tendon lengths (move attachment points only)
     move_moving_points = true    # offset points that move with a coordinate (the patella) within the region
+    rated_force = true           # force per PAM <= Festo's rated force at every constraint sample
+    one_segment = true           # the PAM (+ fittings) fits on one straight segment of its route
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
 """
@@ -48,13 +54,15 @@ from pathlib import Path
 from pamkin.errors import DataFileError
 
 _SECTIONS = {
-    "samples": {"primary": "n_primary", "secondary": "n_secondary", "constraint": "n_constraint"},
+    "samples": {"primary": "n_primary", "secondary": "n_secondary", "constraint": "n_constraint",
+                "random": "n_random", "gait": "gait_samples"},
     "weights": {"primary": "weight_primary", "secondary": "weight_secondary",
-                "regularization": "regularization"},
+                "regularization": "regularization", "whole_vector": "weight_whole_vector", "mass": "weight_mass"},
     "limits": {"region_m": "region_m", "min_point_distance_m": "min_point_distance_m",
                "bone_clearance": "bone_clearance", "kmax_scale": "kmax_scale",
                "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths",
-               "move_moving_points": "move_moving_points"},
+               "move_moving_points": "move_moving_points", "rated_force": "rated_force",
+               "one_segment": "one_segment"},
 }
 
 
@@ -85,9 +93,13 @@ class RunConfig:
     n_primary: int = 25
     n_secondary: int = 7
     n_constraint: int = 5
+    n_random: int = 100
+    gait_samples: bool = True
     weight_primary: float = 1.0
     weight_secondary: float = 0.5
     regularization: float = 1e-3
+    weight_whole_vector: float = 1.0
+    weight_mass: float = 0.02
     region_m: float = 0.05
     min_point_distance_m: float = 0.01
     bone_clearance: bool = True
@@ -95,6 +107,8 @@ class RunConfig:
     pretension_scale: float = 1.0
     fix_lengths: bool = False
     move_moving_points: bool = True
+    rated_force: bool = True
+    one_segment: bool = True
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     source: str = ""
 
@@ -140,7 +154,8 @@ class RunConfig:
             if not 2 <= getattr(self, name) <= 201:
                 raise bad(_KEYS[name], f"must be >= 2 and <= 201 samples, got {getattr(self, name)}")
         for name in ("multistart", "seed", "multistart_threshold", "weight_primary", "weight_secondary",
-                     "regularization", "region_m", "min_point_distance_m", "pretension_scale"):
+                     "regularization", "region_m", "min_point_distance_m", "pretension_scale",
+                     "weight_whole_vector", "weight_mass", "n_random"):
             if getattr(self, name) < 0:
                 raise bad(_KEYS[name], f"must be >= 0, got {getattr(self, name)}")
         if self.weight_primary + self.weight_secondary <= 0:

@@ -10,9 +10,13 @@ the library's own path formulas (:func:`pamkin.paths.path_length`, :func:`pamkin
 moment arms, contractions, forces and torques as CasADi expressions.
 
 Objective: Σ_c w_c · mean_s (τ_robot − τ_human)² / peak_c² + λ Σ_i |ℓ_i − ℓ_i⁰|² / region_i².
-Constraints (every constraint sample): −pretension ≤ ε ≤ kmax(l0); successive points at least
-``min_point_distance`` apart; interior points of every segment clear the bone-shaft capsules by
-capsule radius + PAM radius; t ≥ 0 (buildable: PAM + fittings + tendon fit the route).
+Constraints (every constraint sample, including the multi-joint training poses): −pretension ≤ ε ≤
+kmax(l0); force per PAM ≤ Festo's rated force; the PAM (resting and actual length, with both fittings)
+fits on the route's longest segment (``one_segment``; left out, and reported, where that makes the
+problem infeasible); successive points at least ``min_point_distance`` apart; interior points of every
+segment clear the bone-shaft capsules by capsule radius + PAM radius; t ≥ 0 (PAM + fittings + tendon
+fit the route). The objective's whole-vector terms (every coordinate the route or the human muscles
+cross, on the training poses) are normalised by the human peak about the primary coordinate.
 """
 
 from __future__ import annotations
@@ -56,6 +60,16 @@ def _point_segment_distance(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.n
     return np.linalg.norm(P - (A + AB * u[:, None]), axis=1)
 
 
+#: Margins that keep the audit's limits when they are checked between the samples.
+RATED_MARGIN = 0.02              # force below 98 % of the rated force
+SEGMENT_MARGIN = 0.002           # [m] the PAM clears its segment's ends
+
+
+def _norm_rows(d):
+    """(1, S) norms of a (3, S) CasADi matrix."""
+    return ca.sqrt(ca.sum1(d * d))
+
+
 def _dm(a: np.ndarray) -> ca.DM:
     return ca.DM(np.ascontiguousarray(a))
 
@@ -64,8 +78,10 @@ class ActuatorProblem:
     """CasADi expressions of one actuator's problem for a given diameter and parallel count."""
 
     def __init__(self, data: ActuatorData, cfg: RunConfig, diameter: int,
-                 seed_points: list[np.ndarray], regions: list[list[float]]) -> None:
+                 seed_points: list[np.ndarray], regions: list[list[float]], relax: frozenset = frozenset()) -> None:
         self.data, self.cfg, self.d = data, cfg, diameter
+        self.relax = relax           # constraint groups left out ("one_segment"): the run reports them
+        self.mount: int | None = None  # the segment the PAM sits on (one_segment)
         self.npar = ca.SX.sym("n_parallel")      # a parameter: one solver serves 1..3 parallel PAMs
         self._solver = None
         pts = data.pam.points
@@ -98,7 +114,8 @@ class ActuatorProblem:
         self.L = path_length(X, xp=ca)                            # (1, S)
         pam_len = self.L - 2 * data.fitting_length - self.t
         self.strain = (self.l0 - pam_len) / self.l0
-        self.force = self.npar * festo.force(self.strain, self.l0, data.pressure, diameter, model=data.force_model)
+        self.unit_force = festo.force(self.strain, self.l0, data.pressure, diameter, model=data.force_model)
+        self.force = self.npar * self.unit_force
         self.kmax = festo.kmax(self.l0, diameter, model=data.force_model)
         # objective
         J = 0
@@ -117,6 +134,8 @@ class ActuatorProblem:
             cols = list(map(int, rows))
             tr = tau_r[0, cols] if tau_r.shape[0] == 1 else tau_r[cols]
             peak = float(np.max(np.abs(th))) if len(th) else 0.0
+            if data.norm and label in data.norm:       # whole-vector terms: the human primary peak
+                peak = float(data.norm[label])
             self.torque[label] = (tr, th, peak)
             if peak > 1e-9:
                 J = J + w * ca.sumsqr(tr - _dm(th[None, :])) / (len(cols) * peak ** 2)
@@ -135,6 +154,25 @@ class ActuatorProblem:
         pre = max(cfg.pretension_scale * festo.max_pretension(diameter) - STRAIN_MARGIN, 0.0)
         g.append(eps_c.T); lbg += [-pre] * len(ci); ubg += [np.inf] * len(ci)
         fam += ["stretch <= Festo pretension limit"] * len(ci)
+        if cfg.rated_force:
+            rated = festo.F_MAX_THEORETICAL[diameter] * (1.0 - RATED_MARGIN)
+            g.append((self.unit_force[0, ci] - rated).T); lbg += [-np.inf] * len(ci); ubg += [0.0] * len(ci)
+            fam += ["force per PAM <= Festo rated force"] * len(ci)
+        if cfg.one_segment and "one_segment" not in relax and len(X) > 2:
+            # the PAM sits on the route's longest segment (at the seed): that segment holds the resting
+            # PAM and the actual (possibly stretched) PAM with both fittings; the tendon takes the rest
+            seg = [_norm_rows(X[a + 1] - X[a]) for a in range(len(X) - 1)]
+            seed_len = [float(np.mean(np.linalg.norm(self._seed_world(a + 1) - self._seed_world(a), axis=1)))
+                        for a in range(len(X) - 1)]
+            self.mount = int(np.argmax(seed_len))
+            sj = seg[self.mount][0, ci]
+            need_rest = self.l0 + 2 * data.fitting_length + SEGMENT_MARGIN
+            g.append((sj - need_rest).T); lbg += [0.0] * len(ci); ubg += [np.inf] * len(ci)
+            fam += [f"PAM fits on segment {self.mount + 1}-{self.mount + 2} (resting)"] * len(ci)
+            g.append((sj - (self.L[0, ci] - self.t) - SEGMENT_MARGIN).T); lbg += [0.0] * len(ci); ubg += [np.inf] * len(ci)
+            fam += [f"PAM fits on segment {self.mount + 1}-{self.mount + 2} (actual)"] * len(ci)
+        elif len(X) == 2:
+            self.mount = 0
         if cfg.min_point_distance_m > 0:
             for a, b in zip(range(len(X) - 1), range(1, len(X))):
                 same = (a not in self.moving and b not in self.moving

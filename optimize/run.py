@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pamkin import festo
 from pamkin.design import ROBOT_DESIGN, Design, Pam, load_design, save_design
 from pamkin.errors import PamkinError
 from pamkin.urdf_build import ROBOT_URDF, atomic_write, render_robot_urdf
@@ -46,6 +47,7 @@ class ActuatorResult:
     sample_q: dict[str, np.ndarray] = field(default_factory=dict)
     violations: dict[str, float] = field(default_factory=dict)
     seconds: float = 0.0
+    relaxed: list[str] = field(default_factory=list)     # constraint groups this actuator could not meet
 
 
 # worker state (fork): set before the pool starts
@@ -66,43 +68,58 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     regions = [np.array(cfg.region(pam.id, p.name), float) if is_free(p) or cfg.move_moving_points
                else np.zeros(3) for p in pam.points]
     attempts, best = [], None
-    problems: dict[int, ActuatorProblem] = {}
+    problems: dict = {}
     best_problem: list = [None]
+    best_score = [np.inf]
 
-    def attempt(d: int, n: int, points, rest, tendon, label: str):
+    def score(sol) -> float:
+        """Objective plus the mass penalty of the PAMs on the route (both sides)."""
+        return sol.objective + cfg.weight_mass * 2 * sol.n_parallel * float(festo.pam_mass(sol.rest_length,
+                                                                                           sol.diameter_mm))
+
+    def attempt(d: int, n: int, points, rest, tendon, label: str, relax=frozenset()):
         nonlocal best
-        if d not in problems:
-            problems[d] = ActuatorProblem(data, cfg, d, seed, regions)
-        prob = problems[d]
+        if (d, relax) not in problems:
+            problems[(d, relax)] = ActuatorProblem(data, cfg, d, seed, regions, relax)
+        prob = problems[(d, relax)]
         sol = prob.solve(prob.initial_guess(points, rest, tendon), n)
         attempts.append({"diameter_mm": d, "n_parallel": n, "start": label, "status": sol.status,
-                         "objective": sol.objective, "feasible": sol.success, "seconds": round(sol.seconds, 3)})
+                         "objective": sol.objective, "feasible": sol.success, "seconds": round(sol.seconds, 3),
+                         "relaxed": sorted(relax)})
+        sc = score(sol)
         better = best is None or (sol.success and not best.success) or \
-            (sol.success == best.success and sol.objective < best.objective - 1e-12)
+            (sol.success == best.success and sc < best_score[0] - 1e-12)
         if better:
             best = sol
+            best_score[0] = sc
             best_problem[0] = prob
         return sol
 
     same_seed = (pam.diameter_mm, pam.n_parallel)
+    relaxed: frozenset = frozenset()
     results = {}
     for d in cfg.diameters_mm:
         warm = (pam.resting_length_m, pam.tendon_length_m) if (d, 1) == same_seed else (None, None)
         results[(d, 1)] = attempt(d, 1, seed, *warm, "seed")
+    if cfg.one_segment and not any(s.success for s in results.values()):
+        # the PAM cannot sit on one straight segment of this route within the limits: say so, solve without
+        relaxed = frozenset({"one_segment"})
+        for d in cfg.diameters_mm:
+            results[(d, 1)] = attempt(d, 1, seed, None, None, "seed", relaxed)
     feasible = {key: s for key, s in results.items() if s.success}
     if feasible:
-        d_best = min(feasible, key=lambda key: feasible[key].objective)[0]
+        d_best = min(feasible, key=lambda key: score(feasible[key]))[0]
         prev = feasible[(d_best, 1)]
         for n in range(2, cfg.max_parallel + 1):
-            s = attempt(d_best, n, prev.points, prev.rest_length, prev.tendon_length, "seed")
-            if not (s.success and s.objective < 0.95 * prev.objective):
+            s = attempt(d_best, n, prev.points, prev.rest_length, prev.tendon_length, "seed", relaxed)
+            if not (s.success and score(s) < 0.95 * score(prev)):
                 break
             prev = s
     if best is not None and best.success and best.objective > cfg.multistart_threshold:
         rng = np.random.default_rng(cfg.seed + 1000 * pam.id + seed_index)
         for m in range(cfg.multistart):
             pts = [p + rng.uniform(-0.5, 0.5, 3) * r for p, r in zip(best.points, regions)]
-            attempt(best.diameter_mm, best.n_parallel, pts, None, None, f"perturbed {m + 1}")
+            attempt(best.diameter_mm, best.n_parallel, pts, None, None, f"perturbed {m + 1}", relaxed)
     assert best is not None
     best = best_problem[0].finalize(best)
     new_points = []
@@ -117,7 +134,8 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
               pam.notes)
     sample_q = {label: data.q[rows] for _, rows, _, _, label in data.objective}
     return ActuatorResult(pam.id, pam.name, new, best.status, best.success, attempts, best.nrmse_samples,
-                          best.torque_samples, sample_q, best.violations, time.perf_counter() - t0)
+                          best.torque_samples, sample_q, best.violations, time.perf_counter() - t0,
+                          sorted(best_problem[0].relax))
 
 
 def shift_function(fn, delta: float):

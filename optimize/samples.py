@@ -7,6 +7,7 @@ Everything here is plain numpy (picklable, sent to worker processes); CasADi is 
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,6 +16,7 @@ import yaml
 
 from pamkin._resources import data_file
 from pamkin.design import Pam
+from pamkin.errors import RangeWarning
 from pamkin.model import Model
 from pamkin.osim import MovingPathPoint
 from pamkin.paths import PathSet
@@ -68,6 +70,8 @@ class ActuatorData:
         moving_v: {point index: {coordinate: (S, 3)}} their velocities w.r.t. the coordinate.
         omega, tau: {coordinate: (S, B, 3)} body Jacobian columns (∂x/∂q = ω × x + τ).
         objective: list of (coordinate, sample indices, human torque (len), weight, label).
+        norm: {label: peak} normalising the whole-vector labels by the human primary peak.
+        crossed: The coordinates of the whole-vector term.
         constraint_idx: sample indices where the strain and distance limits are imposed.
         clearance_idx: sample indices where the bone clearance is imposed.
         capsules: list of (capsule, (S, 3) world a, (S, 3) world b).
@@ -92,6 +96,8 @@ class ActuatorData:
     pressure: float
     force_model: str
     primary_coordinate: str
+    norm: dict = None                   # objective label -> normalising peak (default: the label's own)
+    crossed: list = None                # coordinates of the whole-vector term
 
 
 def _grid(model: Model, rom: RangeOfMotion, coords: list[str], n: int) -> np.ndarray:
@@ -137,14 +143,47 @@ def actuator_data(pam: Pam, human: Model, rom: RangeOfMotion, cfg: RunConfig, fi
     q3 = _grid(human, rom, coords, 3)
     clearance_idx = np.concatenate([np.arange(0, len(q1), 3), np.arange(start + len(qc), start + len(qc) + len(q3))])
     blocks.append(q3)
-    q = np.vstack(blocks)
+    start += len(qc) + len(q3)
 
     # target torques
     if target is None:
         idx = [human.muscles.index(m) for m in pam.human_muscles]
-        T = human.torques(q)[:, idx].sum(axis=1)
-    else:
+
+        def target(qq):
+            return human.torques(qq)[:, idx].sum(axis=1)
+
+    # whole torque vector on multi-joint training poses (and the walking trial): every coordinate the
+    # route or the human muscles cross, normalised by the human peak about the primary coordinate
+    crossed: list[str] = []
+    norm: dict[str, float] = {}
+    train_rows = np.zeros(0, dtype=int)
+    if cfg.weight_whole_vector > 0 and (cfg.n_random > 0 or cfg.gait_samples):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RangeWarning)
+            crossed = crossed_coordinates(human, rom, pam.points, target, seed=cfg.seed)
+        if prim not in crossed:
+            crossed.append(prim)
+        qt = [training_poses(human, rom, crossed, cfg.n_random, cfg.seed, pam.id)] if cfg.n_random > 0 else []
+        if cfg.gait_samples:
+            qt.append(gait_training_poses(human))
+        qt = np.vstack(qt)
+        if len(qt):
+            train_rows = np.arange(start, start + len(qt))
+            blocks.append(qt)
+            start += len(qt)
+    q = np.vstack(blocks)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RangeWarning)    # training poses may leave the human model's ranges
         T = np.asarray(target(q), float)
+    for c in crossed:
+        objective.append((c, train_rows, cfg.weight_whole_vector, f"train {c}"))
+    if len(train_rows):
+        peak = float(np.max(np.abs(T[train_rows, human.coordinates.index(prim)])))
+        if peak <= 1e-9:
+            peak = float(np.max(np.abs(T[objective[0][1], human.coordinates.index(prim)])))
+        norm = {f"train {c}": peak for c in crossed}
+        constraint_idx = np.concatenate([constraint_idx, train_rows])
+        clearance_idx = np.concatenate([clearance_idx, train_rows[::6]])
     obj = []
     for c, rows, w, label in objective:
         obj.append((c, rows, T[rows, human.coordinates.index(c)], w, label))
@@ -188,7 +227,86 @@ def actuator_data(pam: Pam, human: Model, rom: RangeOfMotion, cfg: RunConfig, fi
             capsules.append((cap, wa, wb))
     return ActuatorData(pam, q, bodies, st.body_R[:, bidx], st.body_p[:, bidx],
                         [bodies.index(pt.body) for pt in pam.points], moving_x, moving_v, omega, tau, obj,
-                        constraint_idx, clearance_idx, capsules, fitting_length, cfg.pressure_Pa, cfg.force_model, prim)
+                        constraint_idx, clearance_idx, capsules, fitting_length, cfg.pressure_Pa, cfg.force_model, prim,
+                        norm, crossed)
+
+
+#: Random stream of the optimiser's training poses (the audit draws from ``AUDIT_STREAM``).
+OPTIMIZE_STREAM = 0xA0D2
+#: Every k-th pair of consecutive walking-trial frames gives one training pose (their midpoint).
+GAIT_STRIDE = 4
+_MIRROR_NEGATE = ("lumbar_bending", "lumbar_rotation")
+
+
+def crossed_coordinates(model: Model, rom: RangeOfMotion, route, human_torque, n_probe: int = 64,
+                        seed: int = 0) -> list[str]:
+    """Coordinates (other than the pelvis's) about which the route or the human muscles have a
+    torque at some of ``n_probe`` random poses over every coordinate of ``rom``.
+
+    Args:
+        route: The PAM's route points.
+        human_torque: Callable q (N, n_coordinates) -> (N, n_coordinates) human torques [N·m].
+    """
+    coords = [c for c in rom.coordinates if c in model.coordinates]
+    q = training_poses(model, rom, coords, n_probe, seed, 0)
+    kin = model.kinematics
+    st = kin.forward(q, warn_range=False)
+    R = PathSet(kin, ["route"], [route]).evaluate(st).dense_moment_arms(len(model.coordinates))[:, 0]
+    T = np.asarray(human_torque(q), float)
+    hit = (np.max(np.abs(R), axis=0) > 1e-9) | (np.max(np.abs(T), axis=0) > 1e-9)
+    return [c for c, h in zip(model.coordinates, hit) if h and not c.startswith("pelvis_")]
+
+
+def training_poses(model: Model, rom: RangeOfMotion, coords: list[str], n: int, seed: int, actuator: int) -> np.ndarray:
+    """``n`` random poses varying ``coords`` (and the coordinates their coupled limits depend on)
+    uniformly within ``rom``, others 0; stream :data:`OPTIMIZE_STREAM` (never the audit's)."""
+    rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(OPTIMIZE_STREAM, int(actuator))))
+    coords = [c for c in coords if c in rom.coordinates]
+    for c in list(coords):
+        dep = getattr(rom._coupled_by.get(c), "depends_on", None)
+        if dep and dep not in coords and dep in model.coordinates:
+            coords.append(dep)
+    q = np.zeros((n, len(model.coordinates)))
+    u = rng.random((n, len(coords)))
+    drawn: dict[str, np.ndarray] = {}
+    for i in sorted(range(len(coords)), key=lambda i: coords[i] in rom._coupled_by):
+        c = coords[i]
+        lo, hi = rom.bounds(c, drawn)
+        drawn[c] = lo + u[:, i] * (np.asarray(hi) - np.asarray(lo))
+        q[:, model.coordinates.index(c)] = drawn[c]
+    return q
+
+
+def gait_training_poses(model: Model, ik_path=None, stride: int = GAIT_STRIDE) -> np.ndarray:
+    """Right-leg and lumbar poses from a walking trial, *between* its frames (midpoints of every
+    ``stride``-th pair, so never an audit sample): the right leg as recorded and the left leg
+    mirrored onto the right (lumbar bending and rotation negated); pelvis at 0. Empty when the
+    trial or the model's coordinates are missing."""
+    from pamkin.audit import GAIT_IK  # noqa: PLC0415
+    from pamkin.errors import PamkinError  # noqa: PLC0415
+
+    path = Path(ik_path or GAIT_IK)
+    right = [c for c in model.coordinates if c.endswith("_r")]
+    if not path.is_file() or not right:
+        return np.zeros((0, len(model.coordinates)))
+    from pamkin.audit import gait_poses  # noqa: PLC0415
+
+    try:
+        g, _ = gait_poses(model, path)
+    except PamkinError:
+        return np.zeros((0, len(model.coordinates)))
+    mid = 0.5 * (g[:-1:stride] + g[1::stride])
+    out = []
+    for side in ("r", "l"):
+        q = np.zeros((len(mid), len(model.coordinates)))
+        for c in model.coordinates:
+            i = model.coordinates.index(c)
+            if c.endswith("_r"):
+                q[:, i] = mid[:, model.coordinates.index(c[:-2] + "_" + side)]
+            elif c.startswith("lumbar"):
+                q[:, i] = mid[:, i] * (-1.0 if side == "l" and c in _MIRROR_NEGATE else 1.0)
+        out.append(q)
+    return np.vstack(out)
 
 
 def is_free(pt) -> bool:
