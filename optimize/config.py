@@ -1,6 +1,9 @@
 """Run description of an attachment-point optimisation (TOML).
 
-Example (every key optional; these are the defaults)::
+Example (every key optional; these are the defaults). The keys marked (v2) are the ingredients of an
+optimiser judged by ``pamkin audit`` (multi-joint training poses, the whole torque vector, Festo's rated
+force, a mass penalty, one straight segment); they are off by default (the default run
+stays the fast 1-D/2-D fit) and ``examples/optimize_v2.toml`` switches the measured set on::
 
     design = ""                  # design file to start from; "" = built-in robot/data/pam_biped.yaml
     actuators = []               # actuator ids; [] = all
@@ -19,15 +22,15 @@ Example (every key optional; these are the defaults)::
     primary = 25                 # 1-D sweep of the primary coordinate (others 0)
     secondary = 7                # per axis of each 2-D grid primary x secondary
     constraint = 5               # per axis of the full grid over primary + secondaries (strain limits)
-    random = 100                 # multi-joint training poses per actuator (own random stream, never the audit's)
-    gait = true                  # also train on the walking trial (between its frames; both legs, mirrored)
+    random = 0                   # (v2) multi-joint training poses per actuator (own random stream, never the audit's)
+    gait = false                 # (v2) also train on the walking trial (between its frames; both legs, mirrored)
 
     [weights]
     primary = 1.0
     secondary = 0.5
     regularization = 0.001       # pull towards the seed route, per (region size)^2
-    whole_vector = 1.0           # torque error about every coordinate crossed, on the training poses
-    mass = 0.02                  # outer loop: objective penalty per kg of PAM (diameter, parallel count)
+    whole_vector = 1.0           # (v2) torque error about every coordinate crossed, on the training poses
+    mass = 0.0                   # (v2) outer loop: objective penalty per kg of PAM (diameter, parallel count)
 
     [limits]
     region_m = 0.05              # half-width of every route point's box around its seed [m]
@@ -37,8 +40,8 @@ Example (every key optional; these are the defaults)::
     pretension_scale = 1.0       # stretch limit = pretension_scale * Festo's limit
     fix_lengths = false          # keep the seed resting and tendon lengths (move attachment points only)
     move_moving_points = true    # offset points that move with a coordinate (the patella) within the region
-    rated_force = true           # force per PAM <= Festo's rated force at every constraint sample
-    one_segment = true           # the PAM (+ fittings) fits on one straight segment of its route
+    rated_force = false          # (v2) force per PAM <= Festo's rated force at every constraint sample
+    one_segment = false          # (v2) the PAM (+ fittings) fits on one straight segment of its route
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
 """
@@ -93,13 +96,13 @@ class RunConfig:
     n_primary: int = 25
     n_secondary: int = 7
     n_constraint: int = 5
-    n_random: int = 100
-    gait_samples: bool = True
+    n_random: int = 0
+    gait_samples: bool = False
     weight_primary: float = 1.0
     weight_secondary: float = 0.5
     regularization: float = 1e-3
     weight_whole_vector: float = 1.0
-    weight_mass: float = 0.02
+    weight_mass: float = 0.0
     region_m: float = 0.05
     min_point_distance_m: float = 0.01
     bone_clearance: bool = True
@@ -107,8 +110,8 @@ class RunConfig:
     pretension_scale: float = 1.0
     fix_lengths: bool = False
     move_moving_points: bool = True
-    rated_force: bool = True
-    one_segment: bool = True
+    rated_force: bool = False
+    one_segment: bool = False
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     source: str = ""
 

@@ -234,7 +234,7 @@ def actuator_data(pam: Pam, human: Model, rom: RangeOfMotion, cfg: RunConfig, fi
 #: Random stream of the optimiser's training poses (the audit draws from ``AUDIT_STREAM``).
 OPTIMIZE_STREAM = 0xA0D2
 #: Every k-th pair of consecutive walking-trial frames gives one training pose (their midpoint).
-GAIT_STRIDE = 4
+GAIT_STRIDE = 6
 _MIRROR_NEGATE = ("lumbar_bending", "lumbar_rotation")
 
 

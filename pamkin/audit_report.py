@@ -82,6 +82,21 @@ def scorecard_text(res) -> str:
     return "\n".join(lines) + "\n"
 
 
+def side_by_side(results: list, labels: list[str]) -> str:
+    """Audit summaries of several designs in one table: one line per limit, a column per design
+    (``*`` marks a failed limit)."""
+    head = f"{'criterion':42s} {'limit':>14}" + "".join(f" {lab[:16]:>16}" for lab in labels)
+    lines = [head]
+    for k, c in enumerate(results[0].criteria):
+        cells = []
+        for r in results:
+            cr = r.criteria[k]
+            cells.append(f"{_fmt(cr['value'], 4)}{'*' if cr['passed'] is False else ' '}")
+        lines.append(f"{c['name']:42s} {_limit_text(c['limit']):>14}" + "".join(f" {x:>16}" for x in cells))
+    lines.append(f"{'limits failed (*)':42s} {'':>14}" + "".join(f" {len(r.failed):>15} " for r in results))
+    return "\n".join(lines) + "\n"
+
+
 def plot_criteria(res, path: str | os.PathLike) -> Path:
     """One bar chart per per-PAM criterion with its threshold line; offending PAMs in red."""
     import matplotlib  # noqa: PLC0415

@@ -195,3 +195,103 @@ def test_optimize_cli_one_actuator(tmp_path, capsys):
     assert s["actuators"][0]["id"] == 26 and s["actuators"][0]["buildable"]
     assert main(["optimize", "--actuators", "99", "--out", str(tmp_path / "bad")]) == 2
     assert "unknown actuator id(s) [99]" in capsys.readouterr().err
+
+
+def test_whole_vector_term_drives_the_off_axis_torque_to_its_target():
+    """A biarticular PAM (pelvis -> tibia) whose target torques come from a known route: fitted on the
+    knee sweep alone its hip torque is off; with the whole-vector term (multi-joint training poses) the
+    hip torque matches on held-out random poses."""
+    import warnings
+
+    from pamkin.audit import random_poses
+
+    human = pamkin.gait2392()
+    rom = RangeOfMotion({"hip_flexion_r": (-0.2, 0.6), "hip_adduction_r": (-0.2, 0.2),
+                         "hip_rotation_r": (-0.3, 0.3), "knee_angle_r": (-1.0, 0.0)})   # a feasible PAM
+    thesis4 = thesis_robot().design.pam(4)                     # biceps femoris long head: hip and knee
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        two = Pam(4, "t", (), "knee_angle_r", (), 20, 1, 0.3, 0.0, thesis4.points[:2])   # pelvis -> tibia
+        L = PamRobot(Design("t", (two,)), thesis_robot().model, sides=("r",)).evaluate(
+            random_poses(human, rom, 2000, seed=5)).lengths[:, 0]
+    rest = (L.max() - L.min()) / (0.85 * 0.275)                # a 40 mm PAM within 85 % of kmax
+    truth = Pam(4, "truth", thesis4.human_muscles, "knee_angle_r", (), 40, 1, rest,
+                L.max() - 2 * 0.0125 - rest, thesis4.points[:2])   # at rest at the longest route
+    assert truth.tendon_length_m > 0
+    truth_robot = PamRobot(Design("truth", (truth,)), thesis_robot().model, sides=("r",))
+
+    def target(q):
+        return truth_robot.evaluate(q).torques[:, 0, :]
+
+    pts = list(truth.points)                                   # both points moved from the truth
+    first, last = pts
+    pts[0] = PathPoint(first.name, first.body, tuple(np.array(first.location) + [0.025, 0.02, 0.0]))
+    pts[1] = PathPoint(last.name, last.body, tuple(np.array(last.location) + [0.02, 0.0, -0.015]))
+    seed = Pam(4, "seed", truth.human_muscles, "knee_angle_r", (), truth.diameter_mm, 1,
+               truth.resting_length_m, truth.tendon_length_m, tuple(pts))
+    q_test = random_poses(human, rom, 400, seed=3)
+    hip = human.coordinates.index("hip_flexion_r")
+    peak = np.abs(target(q_test)[:, human.coordinates.index("knee_angle_r")]).max()
+    errors = {}
+    for w in (0.0, 1.0):
+        cfg = RunConfig(regularization=0.0, fix_lengths=True, bone_clearance=False, one_segment=False,
+                        rated_force=False, gait_samples=False, weight_secondary=0.0, weight_whole_vector=w,
+                        n_random=60, min_point_distance_m=0.0,
+                        regions={"4": [0.04, 0.04, 0.04]})
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            data = actuator_data(seed, human, rom, cfg, 0.0125, target=target)
+        assert (("train hip_flexion_r" in {o[4] for o in data.objective}) == (w > 0))
+        seed_points = [np.array(p.location) for p in seed.points]
+        regions = [np.array(cfg.region(4, p.name)) for p in seed.points]
+        prob = ActuatorProblem(data, cfg, seed.diameter_mm, seed_points, regions)
+        sol = prob.solve(prob.initial_guess(seed_points, seed.resting_length_m, seed.tendon_length_m), 1)
+        assert sol.success, sol.status
+        fitted = Pam(4, "fit", truth.human_muscles, "knee_angle_r", (), truth.diameter_mm, 1,
+                     truth.resting_length_m, truth.tendon_length_m,
+                     tuple(PathPoint(p.name, p.body, tuple(loc)) for p, loc in zip(seed.points, sol.points)))
+        robot = PamRobot(Design("fit", (fitted,)), thesis_robot().model, sides=("r",))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            err = robot.evaluate(q_test).torques[:, 0, hip] - target(q_test)[:, hip]
+        errors[w] = float(np.sqrt(np.mean(err ** 2)) / peak)
+    print(f"held-out hip-torque error / knee peak: knee sweep only {errors[0.0]:.4f}, whole vector {errors[1.0]:.4f}")
+    assert errors[1.0] < 0.02
+    assert errors[1.0] < 0.3 * errors[0.0]
+
+
+
+def test_one_segment_constraint_puts_the_pam_on_one_straight_segment():
+    """A three-point route whose PAM is longer than either segment: with ``one_segment`` the resting
+    PAM and the actual PAM (with both fittings) fit on the longest segment at every sample; the
+    tendon takes the rest of the route."""
+    model = pamkin.load_osim(DATA / "two_body.osim")
+    rom = RangeOfMotion({"angle": (-0.5, 0.5)})
+    route = (PathPoint("o", "base", (0.03, 0.05, 0.0)), PathPoint("v", "base", (0.04, -0.1, 0.0)),
+             PathPoint("i", "arm", (0.03, -0.15, 0.0)))
+    seed = Pam(1, "toy", (), "angle", (), 10, 1, 0.32, 0.0, route)
+    seed_robot = PamRobot(Design("seed", (seed,)), model, sides=("r",))
+    st = seed_robot.evaluate(np.array([[0.0]]))
+    assert seed.resting_length_m + 0.025 > st.lengths[0, 0] * 0.6      # the seed PAM spans both segments
+
+    def target(q):
+        return 0.5 * seed_robot.evaluate(q).torques[:, 0, :]
+
+    cfg = RunConfig(regularization=0.0, bone_clearance=False, one_segment=True, n_primary=21,
+                    regions={"1": [0.03, 0.03, 0.0]})
+    data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
+    seed_points = [np.array(p.location) for p in seed.points]
+    regions = [np.array(cfg.region(1, p.name)) for p in seed.points]
+    prob = ActuatorProblem(data, cfg, 10, seed_points, regions)
+    sol = prob.solve(prob.initial_guess(seed_points, None, None), 1)
+    assert sol.success, (sol.status, sol.violations)
+    fitted = Pam(1, "fit", (), "angle", (), 10, 1, sol.rest_length, sol.tendon_length,
+                 tuple(PathPoint(p.name, p.body, tuple(loc)) for p, loc in zip(seed.points, sol.points)))
+    robot = PamRobot(Design("fit", (fitted,)), model, sides=("r",))
+    q, _ = model.grid(["angle"], 101, rom=rom)
+    X, _ = robot.paths.point_positions(model.kinematics.forward(q))
+    seg = np.linalg.norm(X[:, 1:] - X[:, :-1], axis=2)[:, prob.mount]
+    pam_len = robot.evaluate(q).pam_lengths[:, 0]
+    assert np.all(seg >= sol.rest_length + 0.025 - 1e-6)
+    assert np.all(seg >= pam_len + 0.025 - 1e-6)
+    assert sol.tendon_length > 0

@@ -46,6 +46,9 @@ def add_parsers(sub) -> None:
                    help="seed design: a design file, a run folder or 'thesis' (overrides the config; default: "
                         "the robot's design robot/data/pam_biped.yaml)")
     s.add_argument("--quiet", action="store_true", help="no progress lines on stderr (default: progress shown)")
+    s.add_argument("--no-audit", action="store_true",
+                   help="skip the final `pamkin audit --quick` of the result and of the thesis design "
+                        "(default: both audited, scorecards side by side, written to the run folder)")
     s.set_defaults(func=cmd_optimize)
 
 
@@ -75,9 +78,28 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     except InfeasibleError as e:
         print(f"pamkin optimize: {e}\nnothing was written into the robot data; see {out}", file=sys.stderr)
         return 3
-    print_summary(summary, out)
+    audit_text = None if args.no_audit else audit_side_by_side(out, stream)
+    print_summary(summary, out, audit_text)
     return 0
 
+
+def audit_side_by_side(out: Path, stream) -> str:
+    """``pamkin audit --quick`` of the run's design and of the thesis design: the table, and both
+    scorecards written into the run folder (``audit.json``, ``scorecard.txt``, ``audit_thesis.json``)."""
+    import json  # noqa: PLC0415
+
+    from ..audit import AuditOptions, audit_design  # noqa: PLC0415
+    from ..audit_report import scorecard_text, side_by_side  # noqa: PLC0415
+    from ..urdf_build import atomic_write  # noqa: PLC0415
+
+    print("auditing the result and the thesis design (pamkin audit --quick) ...", file=stream, flush=True)
+    res = audit_design(out, options=AuditOptions.quick())
+    thesis = audit_design("thesis", options=AuditOptions.quick())
+    atomic_write(out / "audit.json", json.dumps(res.to_dict(), indent=1, default=float))
+    atomic_write(out / "audit_thesis.json", json.dumps(thesis.to_dict(), indent=1, default=float))
+    atomic_write(out / "scorecard.txt", scorecard_text(res))
+    return ("\nAudit on held-out samples (pamkin audit --quick; full: pamkin audit " + str(out) +
+            " and pamkin audit thesis):\n" + side_by_side([thesis, res], ["thesis design", "this run"]))
 
 LEGEND = """\
 Columns: id = actuator; PAM = its name; d x n = Festo diameter [mm] x PAMs in parallel; rest = resting
@@ -89,8 +111,8 @@ and human torque agree in sign; dead = fraction of the constraint grid outside t
 clear = smallest bone clearance beyond the PAM radius [mm]."""
 
 
-def print_summary(summary: dict, out: Path) -> None:
-    """The before/after table with its legend, the totals and the next command to run."""
+def print_summary(summary: dict, out: Path, audit_text: str | None = None) -> None:
+    """The before/after table with its legend, the totals, the audit (if given) and the next command."""
     rows = summary["actuators"]
     w = max([len(a["name"]) for a in rows] + [3])
     print(f"\nRun folder {out} ({summary['total_seconds']} s)")
@@ -109,6 +131,8 @@ def print_summary(summary: dict, out: Path) -> None:
           f"{summary['n_halved']} halved; all buildable: {summary['all_buildable']}; "
           f"all clear of bone: {summary['all_clear_bone']}"
           + ("; applied to robot/data/pam_biped.yaml" if summary.get("applied") else ""))
+    if audit_text:
+        print(audit_text, end="")
     if summary.get("applied"):
         print("Next: pamkin compare    (the robot's design now is the optimised one)")
     else:
