@@ -267,13 +267,8 @@ def training_poses(model: Model, rom: RangeOfMotion, coords: list[str], n: int, 
         if dep and dep not in coords and dep in model.coordinates:
             coords.append(dep)
     q = np.zeros((n, len(model.coordinates)))
-    u = rng.random((n, len(coords)))
-    drawn: dict[str, np.ndarray] = {}
-    for i in sorted(range(len(coords)), key=lambda i: coords[i] in rom._coupled_by):
-        c = coords[i]
-        lo, hi = rom.bounds(c, drawn)
-        drawn[c] = lo + u[:, i] * (np.asarray(hi) - np.asarray(lo))
-        q[:, model.coordinates.index(c)] = drawn[c]
+    for c, v in rom.from_unit(coords, rng.random((n, len(coords)))).items():
+        q[:, model.coordinates.index(c)] = v
     return q
 
 

@@ -176,14 +176,8 @@ def random_poses(model: Model, rom: RangeOfMotion, n: int, seed: int = 0, stream
     rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(int(stream),)))
     coords = audit_coordinates(rom)
     q = np.tile(model.default_q, (n, 1))
-    drawn: dict[str, np.ndarray] = {}
-    u = rng.random((n, len(coords)))
-    order = sorted(range(len(coords)), key=lambda i: coords[i] in rom._coupled_by)
-    for i in order:
-        c = coords[i]
-        lo, hi = rom.bounds(c, drawn)
-        drawn[c] = lo + u[:, i] * (np.asarray(hi) - np.asarray(lo))
-        q[:, model.coordinates.index(c)] = drawn[c]
+    for c, v in rom.from_unit(coords, rng.random((n, len(coords)))).items():
+        q[:, model.coordinates.index(c)] = v
     return q
 
 

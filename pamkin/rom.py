@@ -102,6 +102,23 @@ class RangeOfMotion:
             ok &= (v >= lo - tol) & (v <= hi + tol)
         return ok
 
+    def from_unit(self, coordinates: Sequence[str], u: np.ndarray) -> dict[str, np.ndarray]:
+        """Values of ``coordinates`` from numbers ``u`` (N, len(coordinates)) in [0, 1]: each box-limited
+        coordinate ``lo + u·(hi − lo)``; a coupled one between its limits at the value given to the
+        coordinate it depends on (which must be among ``coordinates``). With uniform random ``u``:
+        uniform random poses within the range.
+
+        Returns:
+            {coordinate: (N,) values} [rad or m].
+        """
+        u = np.asarray(u, float)
+        out: dict[str, np.ndarray] = {}
+        for i in sorted(range(len(coordinates)), key=lambda i: coordinates[i] in self._coupled_by):
+            c = coordinates[i]
+            lo, hi = self.bounds(c, out)
+            out[c] = lo + u[:, i] * (np.asarray(hi) - np.asarray(lo))
+        return out
+
     def grid(self, coordinates: Sequence[str], n: int | Sequence[int] = 21,
              base: Mapping[str, float] | None = None) -> np.ndarray:
         """Grid over ``coordinates`` (M, len(coordinates)), last coordinate varying fastest.

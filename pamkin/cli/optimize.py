@@ -92,9 +92,14 @@ def audit_side_by_side(out: Path, stream) -> str:
     from ..audit_report import scorecard_text, side_by_side  # noqa: PLC0415
     from ..urdf_build import atomic_write  # noqa: PLC0415
 
+    from ..errors import PamkinError  # noqa: PLC0415
+
     print("auditing the result and the thesis design (pamkin audit --quick) ...", file=stream, flush=True)
-    res = audit_design(out, options=AuditOptions.quick())
-    thesis = audit_design("thesis", options=AuditOptions.quick())
+    try:
+        res = audit_design(out, options=AuditOptions.quick())
+        thesis = audit_design("thesis", options=AuditOptions.quick())
+    except PamkinError as e:      # e.g. no bone meshes or walking trial on this machine: the run stands
+        return f"\nAudit skipped ({e}); run pamkin audit {out} with --geometry/--ik where that data is.\n"
     atomic_write(out / "audit.json", json.dumps(res.to_dict(), indent=1, default=float))
     atomic_write(out / "audit_thesis.json", json.dumps(thesis.to_dict(), indent=1, default=float))
     atomic_write(out / "scorecard.txt", scorecard_text(res))
