@@ -11,6 +11,7 @@ from .kinematics import ConfigLike, Kinematics, KinematicsState
 from .osim import OsimModel, load_osim_file
 from .errors import ParameterError, UnsupportedFeatureError
 from .paths import PathResult, PathSet
+from .wrapping import WrappedPaths
 from .thelen2003 import ThelenParams, equilibrium, tendon_force
 from .urdf_build import GAIT2392_DATA, GAIT2392_URDF, cached_urdf, load_model_data
 
@@ -62,6 +63,9 @@ class Model:
         index = {pq: k for k, pq in enumerate(out_pairs)}
         self._pair_out = np.array([index[(int(m), int(kin.root_of[c]))] for m, c in part], dtype=int)
         self._pair_coord = part[:, 1].copy() if len(part) else np.zeros(0, dtype=int)
+        self.wrapping: WrappedPaths | None = None
+        if any(m.wraps for m in osim.muscles):
+            self._init_wrapping()
         self._fast = None
         if engine == "compiled":
             from .fastpaths import FastPaths  # noqa: PLC0415
@@ -81,6 +85,64 @@ class Model:
                                                                        [m.name for m in thelen])
             except ParameterError as e:    # name the file the parameter comes from
                 raise ParameterError(f"{osim.path}: {e}") from None
+
+    #: Central-difference step of wrapped paths' moment arms [rad or m].
+    WRAP_STEP = 1e-6
+
+    def _init_wrapping(self) -> None:
+        kin = self.kinematics
+        self.wrapping = WrappedPaths(self.paths, [m.wraps for m in self.osim.muscles])
+        nc = len(kin.coordinates)
+        moves = np.zeros((len(kin.frames), nc), dtype=bool)   # body b moves with coordinate c
+        for j in range(kin.n_joints):
+            moves[kin.body_support[:, j], kin.coord_of_joint[j]] = True
+        straight = self._pairs if kin.couplers else self.paths.pairs
+        pairs = {(int(m), int(c)) for m, c in straight}
+        wrapped = set()
+        for m in self.wrapping.indices:
+            mus = self.osim.muscles[m]
+            bodies = {kin.frames.index(p.body) for p in mus.points}
+            bodies |= {kin.frames.index(w.wrap_object.body) for w in mus.wraps}
+            for c in range(nc):
+                mv = [moves[b, c] for b in bodies]
+                if any(mv) and not all(mv):
+                    wrapped.add((m, int(kin.root_of[c])))
+            wrapped |= {(mm, c) for mm, c in pairs if mm == m}
+        pairs |= wrapped
+        self._wpairs = np.array(sorted(pairs), dtype=int).reshape(-1, 2)
+        self._wrapped_mask = np.isin(self._wpairs[:, 0], self.wrapping.indices)
+        index = {(int(m), int(c)): k for k, (m, c) in enumerate(straight)}
+        self._wpairs_src = np.array([index.get((int(m), int(c)), -1) for m, c in self._wpairs], dtype=int)
+        col = {m: k for k, m in enumerate(self.wrapping.indices)}
+        # central differences per coordinate: (coordinate, pair indices, wrapped columns)
+        self._wrap_fd = []
+        for c in sorted({int(c) for m, c in self._wpairs[self._wrapped_mask]}):
+            ks = np.nonzero(self._wrapped_mask & (self._wpairs[:, 1] == c))[0]
+            self._wrap_fd.append((c, ks, [col[int(m)] for m in self._wpairs[ks, 0]]))
+
+    def _wrapped_lengths(self, q: np.ndarray, columns=None) -> np.ndarray:
+        return self.wrapping.lengths(self.kinematics.forward(q, warn_range=False), columns)
+
+    def _with_wrapping(self, q: np.ndarray, res: PathResult, moment_arms: bool) -> PathResult:
+        """Replace the wrapped paths' lengths; their moment arms are central differences of the lengths
+        (total derivatives about independent coordinates: dependent coordinates follow their couplers)."""
+        W = self.wrapping
+        L = res.lengths.copy()
+        L[:, W.indices] = self._wrapped_lengths(q)
+        if not moment_arms:
+            return PathResult(L, self._wpairs, None)
+        R = np.zeros((len(q), len(self._wpairs)))
+        keep = ~self._wrapped_mask & (self._wpairs_src >= 0)
+        R[:, keep] = res.moment_arms[:, self._wpairs_src[keep]]
+        h = self.WRAP_STEP
+        for c, ks, cols in self._wrap_fd:
+            qp, qm = q.copy(), q.copy()
+            qp[:, c] += h
+            qm[:, c] -= h
+            Lp = self._wrapped_lengths(self.kinematics.fill_dependent(qp), cols)
+            Lm = self._wrapped_lengths(self.kinematics.fill_dependent(qm), cols)
+            R[:, ks] = -(Lp - Lm) / (2 * h)
+        return PathResult(L, self._wpairs, R)
 
     @property
     def coordinates(self) -> list[str]:
@@ -146,13 +208,17 @@ class Model:
             L = np.zeros((len(q), len(self.paths.names)))
             R = np.zeros((len(q), len(self.paths.pairs))) if moment_arms else None
         if not self.kinematics.couplers:
-            return PathResult(L, self.paths.pairs, R)
-        if R is None:
-            return PathResult(L, self._pairs, None)
-        G = self.kinematics.dependent_derivatives(q)
-        out = np.zeros((len(q), len(self._pairs)))
-        np.add.at(out.T, self._pair_out, (R * G[:, self._pair_coord]).T)
-        return PathResult(L, self._pairs, out)
+            res = PathResult(L, self.paths.pairs, R)
+        elif R is None:
+            res = PathResult(L, self._pairs, None)
+        else:
+            G = self.kinematics.dependent_derivatives(q)
+            out = np.zeros((len(q), len(self._pairs)))
+            np.add.at(out.T, self._pair_out, (R * G[:, self._pair_coord]).T)
+            res = PathResult(L, self._pairs, out)
+        if self.wrapping is None:
+            return res
+        return self._with_wrapping(q, res, moment_arms)
 
     def lengths(self, q: ConfigLike) -> np.ndarray:
         """Musculotendon path lengths (N, n_muscles) [m]."""

@@ -22,7 +22,11 @@ Supported:
 Forces without a path (coordinate actuators, limit forces, bushings, contact, springs),
 contact geometry, controllers, probes and markers cannot change kinematics or muscle paths:
 they are skipped with one :class:`SkippedComponentsWarning` listing them.
-Anything else that changes kinematics or muscle paths (wrap objects, other constraints,
+* Wrap objects ``WrapCylinder``, ``WrapSphere``, ``WrapEllipsoid`` (on bodies, ground or offset
+  frames) and paths' ``PathWrap`` entries (method, range), computed as OpenSim 4.6 does
+  (:mod:`pamkin.wrapping`).
+
+Anything else that changes kinematics or muscle paths (``WrapTorus``, other constraints,
 other joint, function or path-point types) raises
 :class:`~pamkin.errors.UnsupportedFeatureError` naming the file, the element and
 the component: pamkin never approximates silently.
@@ -48,6 +52,7 @@ from .functions import (
     ScalarFunction,
     SimmSpline,
 )
+from .wrapping import KIND_CODE, METHOD_CODE, PathWrap, WrapObject
 
 GROUND = "ground"
 
@@ -345,12 +350,14 @@ class Muscle:
         kind: OpenSim class (``Thelen2003Muscle``, ``Millard2012EquilibriumMuscle`` or ``PathActuator``).
         points: Path points in order (origin first).
         params: Scalar properties by OpenSim property name (SI units).
+        wraps: The path's PathWrapSet (wrap objects it may wrap over), in order.
     """
 
     name: str
     kind: str
     points: tuple[AnyPathPoint, ...]
     params: dict[str, float] = field(hash=False, compare=False)
+    wraps: tuple[PathWrap, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -523,9 +530,8 @@ def load_osim_file(path: str | Path) -> OsimModel:
             "application and save it again", element="OpenSimDocument")
 
     skipped: list[str] = []
-    ground = model_el.find("Ground")
-    _check_no_wrap(rd, ground)
     frames = _read_frames(rd, model_el)
+    wrap_objects = _read_wrap_objects(rd, model_el, frames)
     bodies = _read_bodies(rd, model_el)
     body_names = {b.name for b in bodies} | {GROUND}
     joints = _read_joints(rd, model_el, body_names, frames)
@@ -543,7 +549,7 @@ def load_osim_file(path: str | Path) -> OsimModel:
             skipped.append(f"{c.tag} {c.get('name')!r}")
         else:
             raise rd.err(f"model component <{c.tag}> is not supported", c, unsupported=True)
-    muscles = _read_muscles(rd, model_el, body_names, coord_names, frames, skipped)
+    muscles = _read_muscles(rd, model_el, body_names, coord_names, frames, skipped, wrap_objects)
     if skipped:
         counts: dict[str, int] = {}
         for s_ in skipped:
@@ -679,16 +685,69 @@ def _frame_of(rd: _Reader, ref: str, frames: dict[str, OffsetFrame], body_names:
     return frames.get(key)
 
 
-def _check_no_wrap(rd: _Reader, owner: ET.Element | None) -> None:
-    if owner is None:
-        return
-    for ws in owner.iter("WrapObjectSet"):
-        objs = ws.find("objects")
-        if objs is not None and len(list(objs)):
-            first = list(objs)[0]
-            raise rd.err(f"wrap object <{first.tag} name=\"{first.get('name')}\"> on "
-                         f"{owner.tag} {owner.get('name')!r}: wrapping is not supported", first,
-                         unsupported=True)
+QUADRANT_NAMES = {f"{s}{a}" for s in ("", "+", "-") for a in "xyzXYZ"} | {"all", "ALL", "All", "Unassigned"}
+#: Wrap object properties: class -> ((property, default), ...) as OpenSim 4.6 constructs them.
+WRAP_DIMENSIONS = {"WrapCylinder": (("radius", "1"), ("length", "1")), "WrapSphere": (("radius", "0.05"),),
+                   "WrapEllipsoid": (("dimensions", "0.05 0.05 0.05"),)}
+
+
+def _read_wrap_objects(rd: _Reader, model_el: ET.Element, frames: dict[str, OffsetFrame]) -> dict[str, WrapObject]:
+    """Wrap objects of ground, bodies and their offset frames, by name."""
+    owners = [("/ground", model_el.find("Ground"))]
+    bodyset = model_el.find("BodySet/objects")
+    owners += [(f"/bodyset/{b.get('name')}", b) for b in (bodyset if bodyset is not None else [])]
+    for path, owner in list(owners):
+        comps = owner.find("components") if owner is not None else None
+        owners += [(f"{path}/{c.get('name')}", c) for c in (comps if comps is not None else [])
+                   if c.tag == "PhysicalOffsetFrame"]
+    out: dict[str, WrapObject] = {}
+    for path, owner in owners:
+        objs = owner.find("WrapObjectSet/objects") if owner is not None else None
+        for w in (objs if objs is not None else []):
+            name = w.get("name") or ""
+            if w.tag not in KIND_CODE:
+                raise rd.err(f"wrap object <{w.tag}> on {owner.tag} {owner.get('name')!r} is not supported "
+                             f"(pamkin computes {', '.join(KIND_CODE)})", w, unsupported=True)
+            quadrant = rd.text(w, "quadrant", "all")
+            if quadrant not in QUADRANT_NAMES:     # OpenSim's spellings
+                raise rd.err(f"quadrant {quadrant!r} is not one of +x, -x, +y, -y, +z, -z, all", w)
+            frame = frames.get(path) if path.count("/") > 2 else None
+            body = frame.body if frame is not None else path.split("/")[-1]
+            T = np.eye(4)
+            T[:3, :3] = rotation_xyz_body_fixed(rd.floats(w, "xyz_body_rotation", 3, "0 0 0"))
+            T[:3, 3] = rd.floats(w, "translation", 3, "0 0 0")
+            if frame is not None:
+                T = frame.transform() @ T
+            dims = tuple(v for prop, default in WRAP_DIMENSIONS[w.tag] for v in rd.floats(w, prop, None, default))
+            if len(dims) != {"WrapCylinder": 2, "WrapSphere": 1, "WrapEllipsoid": 3}[w.tag] or min(dims) <= 0:
+                raise rd.err(f"{w.tag} dimensions must be positive numbers, are {dims}", w)
+            if name in out:
+                raise rd.err(f"two wrap objects are called {name!r}", w)
+            out[name] = WrapObject(name, w.tag, body, tuple(map(tuple, T[:3, :3].tolist())),
+                                   tuple(float(v) for v in T[:3, 3]), quadrant, rd.flag(w, "active", True), dims)
+    return out
+
+
+def _read_path_wraps(rd: _Reader, f: ET.Element, gp: ET.Element, n_points: int,
+                     wrap_objects: dict[str, WrapObject]) -> tuple[PathWrap, ...]:
+    pws = gp.find("PathWrapSet/objects")
+    out = []
+    for pw in (pws if pws is not None else []):
+        if pw.tag != "PathWrap":
+            raise rd.err(f"<{pw.tag}> in the PathWrapSet of {f.get('name')!r} is not supported", pw, unsupported=True)
+        wo = rd.text(pw, "wrap_object", "")
+        if wo not in wrap_objects:
+            raise rd.err(f"path wrap of {f.get('name')!r} names unknown wrap object {wo!r}", pw)
+        method = rd.text(pw, "method", "hybrid")
+        if method.lower() == "unassigned":
+            method = "hybrid"
+        if method.lower() not in METHOD_CODE or method not in (method.lower(), method.upper(), method.capitalize()):
+            raise rd.err(f"wrap method {method!r} is not hybrid, midpoint or axial", pw)
+        rng = rd.floats(pw, "range", 2, "-1 -1")
+        if any(r != int(r) or r > n_points for r in rng):
+            raise rd.err(f"wrap range {rng} must be point numbers 1..{n_points} (or -1)", pw)
+        out.append(PathWrap(pw.get("name") or "", wrap_objects[wo], method.lower(), (int(rng[0]), int(rng[1]))))
+    return tuple(out)
 
 
 def _check_empty_set(rd: _Reader, model_el: ET.Element, tag: str, ok_if_missing: bool = True) -> None:
@@ -713,7 +772,6 @@ def _read_bodies(rd: _Reader, model_el: ET.Element) -> tuple[Body, ...]:
         name = b.get("name")
         if not name:
             raise rd.err("Body without a name", b)
-        _check_no_wrap(rd, b)
         meshes = []
         for mesh in b.iter("Mesh"):
             scale = rd.floats(mesh, "scale_factors", 3, "1 1 1")
@@ -906,7 +964,8 @@ def _check_tree(rd: _Reader, bodies: tuple[Body, ...], joints) -> None:
 
 def _read_muscles(rd: _Reader, model_el: ET.Element, body_names: set[str],
                   coord_names: set[str], frames: dict[str, OffsetFrame] | None = None,
-                  skipped: list[str] | None = None) -> tuple[Muscle, ...]:
+                  skipped: list[str] | None = None,
+                  wrap_objects: dict[str, WrapObject] | None = None) -> tuple[Muscle, ...]:
     forceset = model_el.find("ForceSet/objects")
     if forceset is None:
         return ()
@@ -929,13 +988,11 @@ def _read_muscles(rd: _Reader, model_el: ET.Element, body_names: set[str],
             raise rd.err("ignore_tendon_compliance=true: OpenSim 4.6 refuses it for Thelen2003Muscle "
                          "(\"Thelen2003Muscle::ignore_tendon_compliance flag is not currently implemented\"); "
                          "set it to false (pamkin's rigid-tendon forces: rigid_tendon=True)", f, unsupported=True)
-        pws = gp.find("PathWrapSet/objects")
-        if pws is not None and len(list(pws)):
-            raise rd.err("path wrapping (PathWrapSet) is not supported", f, unsupported=True)
         pps = gp.find("PathPointSet/objects")
         if pps is None or len(list(pps)) < 2:
             raise rd.err("path needs at least 2 points", f)
         points = [_read_point(rd, p, f, body_names, coord_names, frames or {}) for p in pps]
+        wraps = _read_path_wraps(rd, f, gp, len(points), wrap_objects or {})
         if isinstance(points[0], ConditionalPathPoint) or isinstance(points[-1], ConditionalPathPoint):
             raise rd.err("first and last path points must not be conditional", f, unsupported=True)
         params = {}
@@ -943,7 +1000,7 @@ def _read_muscles(rd: _Reader, model_el: ET.Element, body_names: set[str],
             for key in PATH_ONLY_PROPERTIES:
                 if f.find(key) is not None:
                     params[key] = rd.floats(f, key, 1)[0]
-            out.append(Muscle(name, f.tag, tuple(points), params))
+            out.append(Muscle(name, f.tag, tuple(points), params, wraps))
             continue
         defaults = {"Thelen2003Muscle": THELEN_PROPERTIES, "PathActuator": PATH_ACTUATOR_PROPERTIES}.get(
             f.tag, MILLARD_PROPERTIES)
@@ -955,7 +1012,7 @@ def _read_muscles(rd: _Reader, model_el: ET.Element, body_names: set[str],
                 params[key] = default
             else:
                 params[key] = rd.floats(f, key, 1, allow_inf=key in ("min_control", "max_control"))[0]
-        out.append(Muscle(name, f.tag, tuple(points), params))
+        out.append(Muscle(name, f.tag, tuple(points), params, wraps))
     return tuple(out)
 
 

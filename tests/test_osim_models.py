@@ -146,9 +146,7 @@ def test_dependent_coordinates_api():
 
 
 def test_every_shared_model_loads_or_is_refused_for_a_reason():
-    reasons = {"Arm26/arm26.osim": "wrapping", "Rajagopal/Rajagopal2016.osim": "wrapping",
-               "Rajagopal_OpenSense/Rajagopal2015_opensense.osim": "wrapping",
-               "BouncingBlock/bouncing_block.osim": "PointOnLineConstraint"}
+    reasons = {"BouncingBlock/bouncing_block.osim": "PointOnLineConstraint"}
     for path in sorted(MODELS.glob("*/*.osim")):
         rel = f"{path.parent.name}/{path.name}"
         if rel in reasons:

@@ -1,0 +1,1028 @@
+"""Path wrapping over cylinders, spheres and ellipsoids, computed as OpenSim 4.6 computes it.
+
+OpenSim (``GeometryPath::applyWrapObjects``) takes the active path points, then for every
+``PathWrap`` of the path (in order; up to 8 passes when a path has two or more, stopping when the
+length changes by less than 0.5 mm) removes that wrap's two points, tries every segment of the
+point range the PathWrap names (``range``, 1-based, -1: first/last point) against the wrap object
+(in the object's frame) and keeps a *mandatory* wrap (the segment pierces the object) or else the
+wrap that lengthens the path least; the two tangent points r1, r2 are inserted into the path,
+fixed in the wrap object's body. The length is the sum of the straight segments plus, between the
+two points of one wrap, the length over the surface that the wrap object computed.
+
+This module re-implements that algorithm and the surface computations of ``WrapCylinder``
+(tangent points slid along the axis, helix length; with several wraps on the path, OpenSim's
+tangency iteration on the helix), ``WrapSphere`` (great circle) and ``WrapEllipsoid`` (wrapping
+plane by the "hybrid", "midpoint" or "axial" method, tangent points by OpenSim's damped
+Gauss-Newton iteration, length as OpenSim's polyline over the surface with 1 mm segments),
+with quadrants (``+x`` … ``-z``, ``all``) and ``active`` flags, from the source of opensim-core
+(read, not copied). ``WrapTorus`` is refused (its closest-circle search is MINPACK's ``lmdif``
+with loose tolerances, whose iterates would have to be reproduced).
+
+The surface computations are scalar numba kernels; the path loop is Python. Lengths match OpenSim
+4.6 to round-off; they are piecewise smooth: they jump where a wrap switches on or off, where
+OpenSim's discretisations change (number of ellipsoid polyline segments, tangency iterations).
+Moment arms of wrapped paths are central differences of these lengths (see
+:class:`pamkin.model.Model`).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+try:
+    from numba import njit
+except ImportError:  # pragma: no cover - numba is a declared dependency
+    def njit(*args, **kwargs):
+        if args and callable(args[0]):
+            return args[0]
+        return lambda f: f
+
+#: WrapAction codes of OpenSim's WrapObject.
+NO_WRAP, INSIDE_RADIUS, WRAPPED, MANDATORY_WRAP = 0, 1, 2, 3
+#: Wrap object kinds.
+CYLINDER, SPHERE, ELLIPSOID = 0, 1, 2
+KIND_CODE = {"WrapCylinder": CYLINDER, "WrapSphere": SPHERE, "WrapEllipsoid": ELLIPSOID}
+#: PathWrap methods.
+HYBRID, MIDPOINT, AXIAL = 0, 1, 2
+METHOD_CODE = {"hybrid": HYBRID, "midpoint": MIDPOINT, "axial": AXIAL}
+#: quadrant name -> (axis, sign); sign 0: all quadrants.
+QUADRANTS = {"-x": (0, -1), "x": (0, 1), "+x": (0, 1), "-y": (1, -1), "y": (1, 1), "+y": (1, 1),
+             "-z": (2, -1), "z": (2, 1), "+z": (2, 1), "all": (0, 0), "unassigned": (0, 0)}
+
+_EPS = 2.220446049250313e-16     # SimTK::Eps
+_ROUNDOFF = 2e-13                # OpenSim's ROUNDOFF_ERROR
+_OPTS = {"cache": True, "error_model": "numpy"}
+
+
+@dataclass(frozen=True)
+class WrapObject:
+    """A wrap surface fixed in a body.
+
+    Attributes:
+        name: Wrap object name (unique in the model).
+        kind: ``WrapCylinder``, ``WrapSphere`` or ``WrapEllipsoid``.
+        body: Body (or ``ground``) the object is fixed in.
+        rotation: Orientation of the object frame in the body (3, 3).
+        translation: Origin of the object frame in the body (3,) [m].
+        quadrant: OpenSim's quadrant name (``all``, ``x``, ``-y`` …).
+        active: OpenSim's ``active`` flag (an inactive object never wraps).
+        dimensions: Cylinder (radius, length), sphere (radius,), ellipsoid (three radii) [m].
+    """
+
+    name: str
+    kind: str
+    body: str
+    rotation: tuple
+    translation: tuple[float, float, float]
+    quadrant: str
+    active: bool
+    dimensions: tuple[float, ...]
+
+    @property
+    def wrap_axis_sign(self) -> tuple[int, int]:
+        return QUADRANTS[self.quadrant.lower()]
+
+
+@dataclass(frozen=True)
+class PathWrap:
+    """One entry of a path's PathWrapSet.
+
+    Attributes:
+        name: PathWrap name.
+        wrap_object: The wrap object.
+        method: ``hybrid``, ``midpoint`` or ``axial`` (ellipsoids only).
+        range: (start, end) 1-based indices into the path's PathPointSet; < 1: first/last point.
+    """
+
+    name: str
+    wrap_object: WrapObject
+    method: str = "hybrid"
+    range: tuple[int, int] = (-1, -1)
+
+
+# ----------------------------------------------------------------------------- vector helpers
+@njit(**_OPTS)
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(**_OPTS)
+def _cross(a, b):
+    out = np.empty(3)
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+    return out
+
+
+@njit(**_OPTS)
+def _norm(a):
+    return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+
+
+@njit(**_OPTS)
+def _unit(a):
+    """WrapMath::NormalizeOrZero (returns the unit vector; zero below SimTK::Eps)."""
+    mag = _norm(a)
+    if mag >= _EPS:
+        return a * (1.0 / mag)
+    return np.zeros(3)
+
+
+@njit(**_OPTS)
+def _acos(x):
+    if x > 1.0 or x < -1.0 or math.isnan(x):
+        return np.nan
+    return math.acos(x)
+
+
+@njit(**_OPTS)
+def _dsign(x):
+    return 1 if x >= 0.0 else -1
+
+
+@njit(**_OPTS)
+def _closest_on_line(pt, line_pt, line):
+    """WrapMath::GetClosestPointOnLineToPoint: (closest point, t)."""
+    v1 = pt - line_pt
+    mag = _norm(v1)
+    v1 = _unit(v1)
+    mag2 = _norm(line)
+    v2 = _unit(line)
+    t = _dot(v1, v2) * mag
+    closest = line_pt + t * v2
+    return closest, t / mag2
+
+
+@njit(**_OPTS)
+def _det3(r0, r1, r2):
+    return (r0[0] * (r1[1] * r2[2] - r1[2] * r2[1]) - r0[1] * (r1[0] * r2[2] - r1[2] * r2[0])
+            + r0[2] * (r1[0] * r2[1] - r1[1] * r2[0]))
+
+
+@njit(**_OPTS)
+def _intersect_lines(p1, p2, p3, p4):
+    """WrapMath::IntersectLines: (ok, pInt1, s, pInt2, t); NaN points when the lines are parallel."""
+    vec1 = p2 - p1
+    mag1 = _norm(vec1)
+    vec1 = _unit(vec1)
+    vec2 = p4 - p3
+    mag2 = _norm(vec2)
+    vec2 = _unit(vec2)
+    cp = _cross(vec1, vec2)
+    denom = _dot(cp, cp)
+    nan3 = np.full(3, np.nan)
+    if abs(denom) <= _ROUNDOFF:
+        return False, nan3, np.nan, nan3.copy(), np.nan
+    row0 = p3 - p1
+    t = _det3(row0, vec1, cp) / denom
+    pint2 = p3 + t * vec2
+    s = _det3(row0, vec2, cp) / denom
+    pint1 = p1 + s * vec1
+    return True, pint1, s / mag1, pint2, t / mag2
+
+
+@njit(**_OPTS)
+def _intersect_seg_plane(pt1, pt2, plane, d):
+    """WrapMath::IntersectLineSegPlane: (ok, point)."""
+    vec = pt2 - pt1
+    dotprod = _dot(vec, plane)
+    if abs(dotprod) < 1e-5:
+        return False, pt1
+    t = (-d - plane[0] * pt1[0] - plane[1] * pt1[1] - plane[2] * pt1[2]) / dotprod
+    if t < -1e-5 or t > 1.0 + 1e-5:
+        return False, pt1
+    return True, pt1 + t * vec
+
+
+@njit(**_OPTS)
+def _dist2_point_line(point, line_pt, line):
+    v = line_pt - point
+    n = line / _norm(line)
+    w = v - _dot(v, n) * n
+    return _dot(w, w)
+
+
+# ----------------------------------------------------------------------------- cylinder
+@njit(**_OPTS)
+def _rot_z(v, angle):
+    c, s = math.cos(angle), math.sin(angle)
+    out = np.empty(3)
+    out[0] = c * v[0] - s * v[1]
+    out[1] = s * v[0] + c * v[1]
+    out[2] = v[2]
+    return out
+
+
+@njit(**_OPTS)
+def _adjust_tangent_point(pt1, dn, r1, w1):
+    """WrapCylinder::_adjust_tangent_point: (adjusted?, new r1)."""
+    pr = _unit(r1 - pt1)
+    rw = _unit(w1 - r1)
+    alpha = _acos(_dot(pr, dn))
+    omega = _acos(_dot(rw, dn))
+    if abs(alpha - omega) > 0.1 * math.pi / 180.0:
+        p1a, _ = _closest_on_line(pt1, r1, dn)
+        w1a, _ = _closest_on_line(w1, r1, dn)
+        _ok, _a, _s, p1aw1a, _t = _intersect_lines(pt1, w1, p1a, w1a)
+        return True, r1 + 1.5 * (p1aw1a - r1)
+    return False, r1
+
+
+@njit(**_OPTS)
+def _spiral(p1, p2, far_side, r1, r2, radius, single):
+    """WrapCylinder::_make_spiral_path: (r1, r2, wrap length)."""
+    dn = np.array([0.0, 0.0, 1.0])
+    p0 = np.array([0.0, 0.0, -1.0])
+    sense = -1.0 if far_side else 1.0
+    iterations = 0
+    while True:
+        r1a, _ = _closest_on_line(r1, p0, dn)
+        r2a, _ = _closest_on_line(r2, p0, dn)
+        axial = _dot(r2a - r1a, dn)
+        uu = r1 - r1a
+        vv = r2 - r2a
+        theta = math.atan2(_dot(_cross(uu, vv), dn), _dot(uu, vv))
+        if far_side:
+            theta = 2.0 * math.pi - theta
+        x = radius * theta
+        length = math.sqrt(x * x + axial * axial)
+        if single:
+            return r1, r2, length
+        n = max(int(length / 0.002), 1)
+        restart = False
+        if n > 1 and iterations < 100:
+            t = 1.0 / n
+            wp = _rot_z(r1, sense * t * theta) + dn * (t * axial)
+            adj1, r1n = _adjust_tangent_point(p1, dn, r1, wp)
+            tw = _rot_z(r1n, sense * (1.0 - t) * theta) + dn * ((1.0 - t) * axial)
+            adj2, r2n = _adjust_tangent_point(p2, dn, r2, tw)
+            r1, r2 = r1n, r2n
+            if adj1 or adj2:
+                iterations += 1
+                restart = True
+        if not restart:
+            return r1, r2, length
+
+
+@njit(**_OPTS)
+def wrap_cylinder(p1, p2, radius, length, wrap_axis, wrap_sign, single):
+    """WrapCylinder::wrapLine in the cylinder frame: (code, r1, r2, wrap length)."""
+    dn = np.array([0.0, 0.0, 1.0])
+    p0 = np.array([0.0, 0.0, -1.0])
+    r2sq = radius * radius
+    nan3 = np.full(3, np.nan)
+    code = WRAPPED
+    constrained = wrap_sign != 0
+    far_side = False
+    long_wrap = False
+    if _dist2_point_line(p1, p0, dn) < r2sq or _dist2_point_line(p2, p0, dn) < r2sq:
+        return INSIDE_RADIUS, nan3, nan3, 0.0
+    cyl_start = np.array([0.0, 0.0, -0.5 * length])
+    cyl_end = np.array([0.0, 0.0, 0.5 * length])
+    _ok, near12, t12, near00, _t00 = _intersect_lines(p1, p2, cyl_start, cyl_end)
+    d12 = near12 - near00
+    pierces = _dot(d12, d12) < r2sq and t12 > 0.0 and t12 < 1.0
+    if not constrained:
+        if pierces:
+            code = MANDATORY_WRAP
+        else:
+            return NO_WRAP, nan3, nan3, 0.0
+    p11, _ = _closest_on_line(p1, p0, dn)
+    p22, _ = _closest_on_line(p2, p0, dn)
+    vv = p1 - p11
+    p11_dist = _norm(vv)
+    vv = _unit(vv)
+    sin_t = radius / p11_dist
+    dist = radius * sin_t
+    pp = p11 + dist * vv
+    dist = math.sqrt(r2sq - dist * dist)
+    uu = _cross(dn, vv)
+    r1a = pp + dist * uu
+    r1b = pp - dist * uu
+    vv = p2 - p22
+    p22_dist = _norm(vv)
+    vv = _unit(vv)
+    sin_t = radius / p22_dist
+    dist = radius * sin_t
+    pp = p22 + dist * vv
+    dist = math.sqrt(r2sq - dist * dist)
+    uu = _cross(dn, vv)
+    r2a = pp + dist * uu
+    r2b = pp - dist * uu
+    ax, sg = wrap_axis, wrap_sign
+    if constrained:
+        if _dsign(p1[ax]) == sg or _dsign(p2[ax]) == sg:
+            if pierces:
+                code = MANDATORY_WRAP
+            elif _dsign(p1[ax]) != _dsign(p2[ax]) and _dsign(near12[ax]) != sg:
+                code = WRAPPED
+            else:
+                return NO_WRAP, nan3, nan3, 0.0
+        r1am, r1bm, r2am, r2bm = r1a - p11, r1b - p11, r2a - p22, r2b - p22
+        alpha = _acos(_dot(r1am, r2bm) / (_norm(r1am) * _norm(r2bm)))
+        beta = _acos(_dot(r1bm, r2am) / (_norm(r1bm) * _norm(r2am)))
+        s1a, s1b = _dsign(r1a[ax]) == sg, _dsign(r1b[ax]) == sg
+        if s1a and s1b:
+            if _dsign(r2a[ax]) == sg:
+                r1, r2, far_side = r1b, r2a, not (alpha > beta)
+            else:
+                r1, r2, far_side = r1a, r2b, alpha > beta
+        elif s1a and not s1b:
+            r1, r2, far_side = r1a, r2b, alpha > beta
+        elif not s1a and s1b:
+            r1, r2, far_side = r1b, r2a, not (alpha > beta)
+        else:
+            if _dsign(r2a[ax]) == sg:
+                r1, r2, far_side = r1b, r2a, not (alpha > beta)
+            elif _dsign(r2b[ax]) == sg:
+                r1, r2, far_side = r1a, r2b, alpha > beta
+            elif alpha > beta:
+                r1, r2, far_side = r1a, r2b, True
+            else:
+                r1, r2, far_side = r1b, r2a, True
+        sum_musc = (r1 - p1) + (r2 - p2)
+        sum_r = (r1 - p11) + (r2 - p22)
+        if _dot(sum_r, sum_musc) < 0.0:
+            long_wrap = True
+    else:
+        r1am, r1bm = _unit(r1a - p11), _unit(r1b - p11)
+        r2am, r2bm = _unit(r2a - p22), _unit(r2b - p22)
+        dot1, dot2 = _dot(r1am, r2am), _dot(r1am, r2bm)
+        dot3, dot4 = _dot(r1bm, r2am), _dot(r1bm, r2bm)
+        if dot1 > dot2 and dot1 > dot3 and dot1 > dot4:
+            r1, r2 = r1a, r2a
+        elif dot2 > dot3 and dot2 > dot4:
+            r1, r2 = r1a, r2b
+        elif dot3 > dot4:
+            r1, r2 = r1b, r2a
+        else:
+            r1, r2 = r1b, r2b
+    # apex of the cylinder edge between the tangent lines
+    t = p11_dist / (p11_dist + p22_dist)
+    mpt = p1 + t * (p2 - p1)
+    axispt, _ = _closest_on_line(mpt, p0, dn)
+    l1 = _unit(p1 - axispt)
+    l2 = _unit(p2 - axispt)
+    pn = _cross(l1, l2)
+    pn = pn / _norm(pn)            # UnitVec3
+    pn = _unit(pn)
+    vert1 = _unit(_cross(dn, pn))
+    vert2 = _unit(_cross(pn, dn))
+    apex1 = axispt + radius * vert1
+    apex2 = axispt + radius * vert2
+    e1, e2 = mpt - apex1, mpt - apex2
+    dist1, dist2 = _dot(e1, e1), _dot(e2, e2)
+    if far_side:
+        apex = apex2 if dist1 < dist2 else apex1
+    else:
+        apex = apex1 if dist1 < dist2 else apex2
+    uu = _unit(p1 - apex)
+    vv = _unit(p2 - apex)
+    pn = _cross(uu, vv)
+    pn = pn / _norm(pn)
+    d = -p1[0] * pn[0] - p1[1] * pn[1] - p1[2] * pn[2]
+    ok1, r1p = _intersect_seg_plane(r1 - 10.0 * dn, r1 + 10.0 * dn, pn, d)
+    ok2, r2p = _intersect_seg_plane(r2 - 10.0 * dn, r2 + 10.0 * dn, pn, d)
+    if ok1:
+        c, _ = _closest_on_line(r1p, p11, p22)      # OpenSim passes p22 as the line's direction
+        e, f = c - p22, p11 - p22
+        if _dot(e, e) < _dot(f, f):
+            r1 = r1p
+    if ok2:
+        c, _ = _closest_on_line(r2p, p11, p22)
+        e, f = c - p11, p22 - p11
+        if _dot(e, e) < _dot(f, f):
+            r2 = r2p
+    half = length / 2.0
+    if (r1[2] < -half or r1[2] > half) and (r2[2] < -half or r2[2] > half):
+        return NO_WRAP, nan3, nan3, 0.0
+    r1, r2, wl = _spiral(p1, p2, long_wrap, r1, r2, radius, single)
+    return code, r1, r2, wl
+
+
+# ----------------------------------------------------------------------------- sphere
+@njit(**_OPTS)
+def wrap_sphere(p1, p2, radius, wrap_axis, wrap_sign):
+    """WrapSphere::wrapLine in the sphere frame: (code, r1, r2, wrap length)."""
+    nan3 = np.full(3, np.nan)
+    code = WRAPPED
+    far_side = False
+    ri = p1 - p2
+    mp = -p2
+    p1p2 = p1 - p2
+    n1, n2 = _norm(p1), _norm(p2)
+    if n1 < radius or n2 < radius:
+        return INSIDE_RADIUS, nan3, nan3, 0.0
+    a = _dot(ri, ri)
+    b = -2.0 * _dot(mp, ri)
+    c = _dot(mp, mp) - radius * radius
+    disc = b * b - 4.0 * a * c
+    if disc < 0.0:
+        return NO_WRAP, nan3, nan3, 0.0
+    l1 = (-b + math.sqrt(disc)) / (2.0 * a)
+    l2 = (-b - math.sqrt(disc)) / (2.0 * a)
+    if not 0.0 < l1 < 1.0 or not 0.0 < l2 < 1.0:
+        return NO_WRAP, nan3, nan3, 0.0
+    if l1 < l2:
+        return NO_WRAP, nan3, nan3, 0.0
+    p1p2 = _unit(p1p2)
+    np2 = _unit(p2)
+    hp2 = _cross(p1p2, np2)
+    if _norm(hp2) < 0.00001:
+        return code, nan3, nan3, np.nan     # OpenSim reuses a stale previous wrap here (undefined)
+    n = _unit(hp2)
+    cands = np.empty((4, 3))
+    for k in range(2):
+        pt = p1 if k == 0 else p2
+        y = _unit(-pt)
+        z = _cross(n, y)
+        ang = math.asin(radius / _norm(pt))
+        rr = _norm(pt) * math.cos(ang)
+        ca, sa = math.cos(ang), math.sin(ang)
+        cands[2 * k] = pt + (ca * y - sa * z) * rr
+        cands[2 * k + 1] = pt + (ca * y + sa * z) * rr
+    r1a, r1b, r2a, r2b = cands[0], cands[1], cands[2], cands[3]
+    r1am, r1bm, r2am, r2bm = _unit(r1a), _unit(r1b), _unit(r2a), _unit(r2b)
+    j1, j2, j3, j4 = _dot(r1am, r2am), _dot(r1am, r2bm), _dot(r1bm, r2am), _dot(r1bm, r2bm)
+    if j1 > j2 and j1 > j3 and j1 > j4:
+        r1, r2, r11, r22 = r1a, r2a, r1b, r2b
+    elif j2 > j3 and j2 > j4:
+        r1, r2, r11, r22 = r1a, r2b, r1b, r2a
+    elif j3 > j4:
+        r1, r2, r11, r22 = r1b, r2a, r1a, r2b
+    else:
+        r1, r2, r11, r22 = r1b, r2b, r1a, r2a
+    ax, sg = wrap_axis, wrap_sign
+    if sg != 0:
+        if _dsign(p1[ax]) == sg or _dsign(p2[ax]) == sg:
+            mm, tt = _closest_on_line(np.zeros(3), p1, p1p2)
+            tt = -tt
+            if _dot(mm, mm) < radius * radius and tt > 0.0 and tt < 1.0:
+                code = MANDATORY_WRAP
+            elif _dsign(p1[ax]) != _dsign(p2[ax]) and _dsign(mm[ax]) != sg:
+                code = WRAPPED
+            else:
+                return NO_WRAP, nan3, nan3, 0.0
+        if _dsign(p1[ax]) != sg or _dsign(p2[ax]) != sg:
+            wrapaxis = np.zeros(3)
+            wrapaxis[ax] = float(sg)
+            sum_musc = _unit(-p1 - p2)
+            if _dot(r1am, sum_musc) > _dot(r1bm, sum_musc):
+                r1, r11 = r1a, r1b
+            else:
+                r1, r11 = r1b, r1a
+            if _dot(r2am, sum_musc) > _dot(r2bm, sum_musc):
+                r2, r22 = r2a, r2b
+            else:
+                r2, r22 = r2b, r2a
+            sum_musc = _unit((r1 - p1) + (r2 - p2))
+            if _dot(sum_musc, wrapaxis) < 0.0:
+                r1, r2 = r11, r22
+            sum_musc = (r1 - p1) + (r2 - p2)
+            sum_r = r1 + r2
+            if _dot(sum_r, sum_musc) < 0.0:
+                far_side = True
+    r1n, r2n = _unit(r1), _unit(r2)
+    angle = _acos(_dot(r1n, r2n))
+    if far_side:
+        angle = -(2 * math.pi - angle)      # as OpenSim 4.6 (a negative length on far-side wraps)
+    return code, r1, r2, radius * angle
+
+
+# ----------------------------------------------------------------------------- ellipsoid
+@njit(**_OPTS)
+def _closest_ellipse(a, b, u, v):
+    """WrapEllipsoid::closestPointToEllipse: (x, y)."""
+    a2, b2 = a * a, b * b
+    a2u2, b2v2 = a2 * u * u, b2 * v * v
+    near_x = abs(u) <= _ROUNDOFF
+    near_y = abs(v) <= _ROUNDOFF
+    if near_x and near_y:
+        if a < b:
+            return (-a if u < 0.0 else a), v
+        return u, (-b if v < 0.0 else b)
+    if near_x:
+        if a >= b or abs(v) >= b - a2 / b:
+            return u, (b if v >= 0 else -b)
+        y = b2 * v / (b2 - a2)
+        ydb = y / b
+        return a * math.sqrt(abs(1 - ydb * ydb)), y
+    if near_y:
+        if b >= a or abs(u) >= a - b2 / a:
+            return (a if u >= 0 else -a), v
+        x = a2 * u / (a2 - b2)
+        xda = x / a
+        return x, b * math.sqrt(abs(1 - xda * xda))
+    if (u / a) * (u / a) + (v / b) * (v / b) < 1.0:
+        t = 0.0
+    else:
+        t = max(a, b) * math.sqrt(u * u + v * v)
+    P = Q = 0.0
+    for _ in range(64):
+        P = t + a2
+        Q = t + b2
+        P2, Q2 = P * P, Q * Q
+        f = P2 * Q2 - a2u2 * Q2 - b2v2 * P2
+        if abs(f) < 1e-09:
+            break
+        fp = 2.0 * (P * Q * (P + Q) - a2u2 * Q - b2v2 * P)
+        t -= f / fp
+    return a2 * u / P, b2 * v / Q
+
+
+@njit(**_OPTS)
+def _closest_ellipsoid(a, dims, p, out, special):
+    """WrapEllipsoid::findClosestPoint: writes the closest point into ``out`` (left unchanged when
+    OpenSim's Newton iteration fails); ``dims`` are the unscaled radii (tie-break of the special case)."""
+    u, v, w = p[0], p[1], p[2]
+    if special < 0:
+        best = np.inf
+        for i in range(3):
+            if abs(p[i]) <= _ROUNDOFF:
+                s = 0.0
+                for j in range(3):
+                    if j != i:
+                        s += dims[j]
+                if best > s:
+                    special = i
+                    best = s
+    if special == 0:
+        out[0] = u
+        out[1], out[2] = _closest_ellipse(a[1], a[2], v, w)
+        return
+    if special == 1:
+        out[1] = v
+        out[2], out[0] = _closest_ellipse(a[2], a[0], w, u)
+        return
+    if special == 2:
+        out[2] = w
+        out[0], out[1] = _closest_ellipse(a[0], a[1], u, v)
+        return
+    aa, bb, cc = a[0], a[1], a[2]
+    a2, b2, c2 = aa * aa, bb * bb, cc * cc
+    a2u2, b2v2, c2w2 = a2 * u * u, b2 * v * v, c2 * w * w
+    if (u / aa) * (u / aa) + (v / bb) * (v / bb) + (w / cc) * (w / cc) < 1.0:
+        t = 0.0
+    else:
+        t = max(aa, max(bb, cc)) * math.sqrt(u * u + v * v + w * w)
+    for _ in range(64):
+        P, Q, R = t + a2, t + b2, t + c2
+        P2, Q2, R2 = P * P, Q * Q, R * R
+        f = P2 * Q2 * R2 - a2u2 * Q2 * R2 - b2v2 * P2 * R2 - c2w2 * P2 * Q2
+        if abs(f) < 1e-09:
+            out[0] = a2 * u / P
+            out[1] = b2 * v / Q
+            out[2] = c2 * w / R
+            return
+        PQ, PR, QR, PQR = P * Q, P * R, Q * R, P * Q * R
+        fp = 2.0 * (PQR * (QR + PR + PQ) - a2u2 * QR * (Q + R) - b2v2 * PR * (P + R) - c2w2 * PQ * (P + Q))
+        t -= f / fp
+
+
+@njit(**_OPTS)
+def _tangent_residuals(r1, d1, p1, m, a, vs, vs4):
+    ee = np.empty(4)
+    nr1 = 2.0 * (r1 - m) / (a * a)
+    ee[0] = _dot(vs, r1) + vs4
+    e1 = -1.0
+    for i in range(3):
+        e1 += ((r1[i] - m[i]) / a[i]) ** 2
+    ee[1] = e1
+    ee[2] = _dot(nr1, r1) + d1
+    ee[3] = _dot(nr1, p1) + d1
+    return ee, ee[0] ** 2 + ee[1] ** 2 + ee[2] ** 2 + ee[3] ** 2
+
+
+@njit(**_OPTS)
+def _tangent_point(p1e, r1, p1, m, a, vs, vs4):
+    """WrapEllipsoid::calcTangentPoint (normalised coordinates): the adjusted r1."""
+    if abs(p1e) < 0.0001:
+        return p1.copy()
+    r1 = r1.copy()
+    alpha = 0.01
+    nr1 = 2.0 * (r1 - m) / (a * a)
+    d1 = -_dot(nr1, r1)
+    ee, ssq = _tangent_residuals(r1, d1, p1, m, a, vs, vs4)
+    ssqo = ssq
+    nit = 0
+    dedth = np.zeros((4, 4))
+    vt = np.zeros(4)
+    while ssq > 0.00000001 and nit < 50:
+        nit += 1
+        for i in range(3):
+            dedth[i, 0] = vs[i]
+            dedth[i, 1] = 2.0 * (r1[i] - m[i]) / (a[i] * a[i])
+            dedth[i, 2] = 2.0 * (2.0 * r1[i] - m[i]) / (a[i] * a[i])
+            dedth[i, 3] = 2.0 * p1[i] / (a[i] * a[i])
+        dedth[3, 0] = 0.0
+        dedth[3, 1] = 0.0
+        dedth[3, 2] = 1.0
+        dedth[3, 3] = 1.0
+        p1r1 = _unit(p1 - r1)
+        p1m = _unit(p1 - m)
+        pcos = _dot(p1r1, p1m)
+        dd = 1.0 - pcos ** 100 if pcos > 0.1 else 1.0
+        v = np.zeros(4)
+        for i in range(4):
+            for j in range(4):
+                v[i] -= dedth[i, j] * ee[j]
+        dedth2 = np.zeros((4, 4))
+        for i in range(4):
+            for j in range(4):
+                for k in range(4):
+                    dedth2[i, j] += dedth[i, k] * dedth[j, k]
+        diag = np.empty(4)
+        for i in range(4):
+            diag[i] = dedth2[i, i]
+        nit2 = 0
+        while ssq >= ssqo and nit2 < 1000:
+            for i in range(4):
+                dedth2[i, i] = diag[i] * (1.0 + alpha)
+            inv = np.linalg.inv(dedth2)
+            for i in range(4):
+                s = 0.0
+                for j in range(4):
+                    s += dd * inv[i, j] * v[j] / 16.0
+                vt[i] = s
+            r1 += vt[:3]
+            d1 += vt[3]
+            ee, s2 = _tangent_residuals(r1, d1, p1, m, a, vs, vs4)
+            ssqo = ssq
+            ssq = s2
+            alpha *= 4.0
+            nit2 += 1
+        alpha /= 8.0
+        fakt = 0.5
+        nit2 = 0
+        while ssq <= ssqo and nit2 < 1000:
+            fakt *= 2.0
+            r1 += vt[:3] * fakt
+            d1 += vt[3] * fakt
+            ee, s2 = _tangent_residuals(r1, d1, p1, m, a, vs, vs4)
+            ssqo = ssq
+            ssq = s2
+            nit2 += 1
+        r1 -= vt[:3] * fakt
+        d1 -= vt[3] * fakt
+        ee, ssq = _tangent_residuals(r1, d1, p1, m, a, vs, vs4)
+        ssqo = ssq
+    return r1
+
+
+@njit(**_OPTS)
+def _ellipsoid_distance(r1, r2, m, a, vs, vs4, far_side, factor):
+    """WrapEllipsoid::CalcDistanceOnEllipsoid (normalised): (length, first interior point, last interior
+    point, number of wrap points)."""
+    dr = r1 - r2
+    ln = _norm(dr) / factor
+    if ln < 0.001:
+        return ln * factor, r2, r1, 2
+    nseg = min(int(ln / 0.001), 499)
+    imax = 0
+    for i in range(1, 3):
+        if abs(vs[i]) > abs(vs[imax]):
+            imax = i
+    u = np.zeros(3)
+    u[imax] = 1.0
+    mu = (-_dot(vs, m) - vs4) / _dot(vs, u)
+    a0 = m + mu * u
+    ar1 = _unit(r1 - a0)
+    ar2 = _unit(r2 - a0)
+    phi0 = _acos(_dot(ar1, ar2))
+    if far_side:
+        dphi = -(2 * math.pi - phi0) / nseg
+    else:
+        dphi = phi0 / nseg
+    vsz = _unit(_cross(ar1, ar2))
+    vsy = _cross(vsz, ar1)
+    f2 = (a0 - m) / a
+    cc = _dot(f2, f2) - 1.0
+    prev = r1
+    total = 0.0
+    first = r2
+    last = r1
+    for i in range(nseg - 1):
+        phi = (i + 1) * dphi
+        c, s = math.cos(phi), math.sin(phi)
+        r = np.empty(3)
+        for j in range(3):
+            r[j] = ar1[j] * c + vsy[j] * s + vsz[j] * 0.0
+        f1 = r / a
+        aa = _dot(f1, f1)
+        bb = 2.0 * _dot(f1, f2)
+        mu3 = (-bb + math.sqrt(bb * bb - 4.0 * aa * cc)) / (2.0 * aa)
+        pt = a0 + mu3 * r
+        if i == 0:
+            first = pt
+        last = pt
+        total += _norm(pt - prev)
+        prev = pt
+    total += _norm(r2 - prev)
+    return total, first, last, nseg + 1
+
+
+@njit(**_OPTS)
+def wrap_ellipsoid(point1, point2, dims, method, wrap_axis, wrap_sign):
+    """WrapEllipsoid::wrapLine in the ellipsoid frame: (code, r1, r2, wrap length)."""
+    nan3 = np.full(3, np.nan)
+    factor = 3.0 / (dims[0] + dims[1] + dims[2])
+    p1 = point1 * factor
+    p2 = point2 * factor
+    m = np.zeros(3)
+    a = dims * factor
+    p1e, p2e = -1.0, -1.0
+    for i in range(3):
+        p1e += ((p1[i] - m[i]) / a[i]) ** 2
+        p2e += ((p2[i] - m[i]) / a[i]) ** 2
+    if p1e < -0.0001 or p2e < -0.0001:
+        return INSIDE_RADIUS, nan3, nan3, 0.0
+    p1p2 = p1 - p2
+    p1m = _unit(p1 - m)
+    p2m = _unit(p2 - m)
+    ppm = _dot(p1m, p2m) - 1.0
+    if abs(ppm) < 0.0001:
+        return NO_WRAP, nan3, nan3, 0.0
+    f1 = p1p2 / a
+    f2 = (p2 - m) / a
+    aa = _dot(f1, f1)
+    bb = 2.0 * _dot(f1, f2)
+    cc = _dot(f2, f2) - 1.0
+    disc = bb * bb - 4.0 * aa * cc
+    if disc < 0.0:
+        return NO_WRAP, nan3, nan3, 0.0
+    l1 = (-bb + math.sqrt(disc)) / (2.0 * aa)
+    l2 = (-bb - math.sqrt(disc)) / (2.0 * aa)
+    if not 0.0 < l1 < 1.0 or not 0.0 < l2 < 1.0:
+        return NO_WRAP, nan3, nan3, 0.0
+    r1 = p2 + l1 * p1p2
+    r2 = p2 + l2 * p1p2
+    r1r2 = r2 - r1
+    # wrapping plane: Frans' technique (most parallel axis) and/or the fan technique
+    mu = _unit(p1p2)
+    t = np.empty(3)
+    t_sv = np.empty((3, 3))
+    t_c1 = np.full((3, 3), np.nan)
+    for i in range(3):
+        mu[i] = abs(mu[i])
+        t[i] = (m[i] - r1[i]) / r1r2[i]
+        for j in range(3):
+            t_sv[i, j] = r1[j] + t[i] * r1r2[j]
+        _closest_ellipsoid(a, dims, t_sv[i], t_c1[i], i)
+    best = 0
+    for i in range(1, 3):
+        if mu[i] > mu[best]:
+            best = i
+    c1 = np.full(3, np.nan)
+    sv = np.full(3, np.nan)
+    fan_weight = -np.inf
+    blend_min, blend_max = 0.7073, 0.9
+    if method == HYBRID or method == AXIAL:
+        if method == HYBRID and mu[best] > blend_min:
+            s = 1.0
+            if t[best] < 0.0 or t[best] > 1.0:
+                s = 0.0
+            elif t[best] < 0.3:
+                s = t[best] / 0.3
+            elif t[best] > 1.0 - 0.3:
+                s = (1.0 - t[best]) / 0.3
+            if s < 1.0:
+                mu[best] = blend_min + s * (mu[best] - blend_min)
+        if method == AXIAL or mu[best] > blend_min:
+            c1 = t_c1[best].copy()
+            sv = t_sv[best].copy()
+        if method == HYBRID and mu[best] < blend_max:
+            v_sum = np.zeros(3)
+            t_sv[2] = r1 + 0.5 * r1r2
+            for i in range(1, 300 - 1):
+                tt = i / 300.0
+                t_sv[0] = r1 + tt * r1r2
+                _closest_ellipsoid(a, dims, t_sv[0], t_c1[0], -1)
+                v_sum += _unit(t_c1[0] - t_sv[0])
+            v_sum = _unit(v_sum)
+            t_c1[0] = t_sv[2] + v_sum
+            if mu[best] <= blend_min:
+                _closest_ellipsoid(a, dims, t_c1[0], c1, -1)
+                sv = t_sv[2].copy()
+                fan_weight = 1.0
+            else:
+                tt = (mu[best] - blend_min) / (blend_max - blend_min)
+                omt = 1.0 - tt
+                _closest_ellipsoid(a, dims, t_c1[0], t_c1[1], -1)
+                t_c1[2] = tt * c1 + omt * t_c1[1]
+                sv = tt * sv + omt * t_sv[2]
+                _closest_ellipsoid(a, dims, t_c1[2], c1, -1)
+                fan_weight = omt
+    else:
+        sv = r1 + 0.5 * (r2 - r1)
+        _closest_ellipsoid(a, dims, sv, c1, -1)
+    use_c1 = True
+    if method == AXIAL:
+        use_c1 = t[best] > 0.0 and t[best] < 1.0
+    if use_c1:
+        r1 = c1.copy()
+        r2 = c1.copy()
+    ax, sg = wrap_axis, wrap_sign
+    if sg != 0:
+        dist = c1[ax] - m[ax]
+        if _dsign(dist) != sg:
+            orig = c1[ax]
+            c1 = c1.copy()
+            c1[ax] = -c1[ax]
+            r1 = c1.copy()
+            r2 = c1.copy()
+            if abs(fan_weight - (-np.inf)) <= _ROUNDOFF:
+                fan_weight = 1.0 - (mu[best] - blend_min) / (blend_max - blend_min)
+            fan_weight = min(fan_weight, 1.0)
+            if fan_weight > 0.0:
+                bis = (orig + c1[ax]) / 2.0
+                c1[ax] = c1[ax] + fan_weight * (bis - c1[ax])
+                tc1 = c1.copy()
+                _closest_ellipsoid(a, dims, tc1, c1, -1)
+    p1c1 = p1 - c1
+    vs = _unit(_cross(p1p2, p1c1))
+    vs4 = -_dot(vs, c1)
+    r1 = _tangent_point(p1e, r1, p1, m, a, vs, vs4)
+    r2 = _tangent_point(p2e, r2, p2, m, a, vs, vs4)
+    far_side = False
+    wl, w1, w2, npts = _ellipsoid_distance(r1, r2, m, a, vs, vs4, far_side, factor)
+    if sg != 0 and npts > 2:
+        r1p1 = _unit(p1 - r1)
+        r1w1 = _unit(w1 - r1)
+        r2p2 = _unit(p2 - r2)
+        r2w2 = _unit(w2 - r2)
+        if _dot(r1p1, r1w1) > 0.0 or _dot(r2p2, r2w2) > 0.0:
+            wl, w1, w2, npts = _ellipsoid_distance(r1, r2, m, a, vs, vs4, True, factor)
+    return MANDATORY_WRAP, r1 / factor, r2 / factor, wl / factor
+
+
+# ----------------------------------------------------------------------------- the path algorithm
+class WrapSpec:
+    """A PathWrap prepared for evaluation (object kind, parameters, frame in its body)."""
+
+    def __init__(self, pw: PathWrap, body_index: int) -> None:
+        wo = pw.wrap_object
+        self.name = pw.name
+        self.object = wo.name
+        self.kind = KIND_CODE[wo.kind]
+        self.body = body_index
+        self.R = np.asarray(wo.rotation, dtype=float).reshape(3, 3)
+        self.t = np.asarray(wo.translation, dtype=float)
+        self.axis, self.sign = wo.wrap_axis_sign
+        self.active = wo.active
+        self.dims = np.asarray(wo.dimensions, dtype=float)
+        self.method = METHOD_CODE[pw.method.lower()]
+        self.start, self.end = pw.range
+
+    def wrap(self, a: np.ndarray, b: np.ndarray, single: bool):
+        """Wrap the segment a→b (points in the wrap object's frame)."""
+        if self.kind == CYLINDER:
+            return wrap_cylinder(a, b, self.dims[0], self.dims[1], self.axis, self.sign, single)
+        if self.kind == SPHERE:
+            return wrap_sphere(a, b, self.dims[0], self.axis, self.sign)
+        return wrap_ellipsoid(a, b, self.dims, self.method, self.axis, self.sign)
+
+
+def wrapped_path_length(X: np.ndarray, active: np.ndarray, wraps: Sequence[WrapSpec],
+                        frames: Sequence[tuple[np.ndarray, np.ndarray]]) -> float:
+    """Length of one path at one configuration, wrapped as OpenSim's ``applyWrapObjects``.
+
+    Args:
+        X: (n_points, 3) world positions of the path's PathPointSet (inactive points included).
+        active: (n_points,) which points are in the path (conditional points).
+        wraps: The path's PathWraps.
+        frames: Each wrap object's world pose (R, p) at this configuration.
+    """
+    n_orig = len(X)
+    path: list[tuple[int, int]] = [(-1, i) for i in range(n_orig) if active[i]]   # (-1, point) or (wrap, 1|2)
+    pos: dict[tuple[int, int], np.ndarray] = {(-1, i): X[i] for i in range(n_orig)}
+    surf: dict[tuple[int, int], float] = {}
+    obj = [w.object for w in wraps]
+    cached: dict[tuple[int, int], np.ndarray] = {}
+
+    def ground(e: tuple[int, int]) -> np.ndarray:
+        # OpenSim caches a point's location in ground (Point::getLocationInGround) the first time it is
+        # read for a state; a wrap point moved later by PathWrapPoint::setLocation keeps the cached value.
+        if e[0] < 0:
+            return pos[e]
+        if e not in cached:
+            cached[e] = pos[e]
+        return cached[e]
+
+    def same_object(e1, e2) -> bool:
+        return e1[0] >= 0 and e2[0] >= 0 and obj[e1[0]] == obj[e2[0]]
+
+    def length() -> float:
+        total = 0.0
+        for e1, e2 in itertools.pairwise(path):
+            if same_object(e1, e2):
+                total += surf[e2]
+            else:
+                d = ground(e2) - ground(e1)
+                total += math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        return total
+
+    def remove(k: int) -> None:
+        if (k, 1) in path:
+            j = path.index((k, 1))
+            del path[j:j + 2]
+
+    nw = len(wraps)
+    order = list(range(nw))
+    result = [NO_WRAP] * nw
+    last = math.inf
+    single = nw == 1
+    for kk in range(1 if nw < 2 else 8):
+        for i in range(nw):
+            result[i] = NO_WRAP
+            k = order[i]
+            w = wraps[k]
+            remove(k)
+            if not w.active:
+                continue
+            ws = 0 if w.start < 1 else w.start - 1
+            we = n_orig - 1 if w.end < 1 else w.end - 1
+            fwd = [j for j in range(ws, we + 1) if active[j]]
+            if not fwd:
+                return length()
+            start, end = path.index((-1, fwd[0])), path.index((-1, fwd[-1]))
+            R, p = frames[k]
+            best = None
+            min_change = math.inf
+            for pt1 in range(start, end):
+                e1, e2 = path[pt1], path[pt1 + 1]
+                if same_object(e1, e2):
+                    continue
+                a = (pos[e1] - p) @ R
+                b = (pos[e2] - p) @ R
+                code, r1, r2, wl = w.wrap(a, b, single)
+                result[i] = code
+                if code == MANDATORY_WRAP:
+                    best = (pt1, r1, r2, wl)
+                    break
+                if code == WRAPPED:
+                    g1, g2 = p + R @ r1, p + R @ r2
+                    x1, x2 = ground(e1), ground(e2)
+                    change = np.linalg.norm(g1 - x1) + wl + np.linalg.norm(x2 - g2) - np.linalg.norm(x2 - x1)
+                    if change < min_change:
+                        best = (pt1, r1, r2, wl)
+                        min_change = change
+            if best is not None:
+                pt1, r1, r2, wl = best
+                pos[(k, 1)] = p + R @ r1
+                pos[(k, 2)] = p + R @ r2
+                surf[(k, 1)] = 0.0
+                surf[(k, 2)] = wl
+                path.insert(pt1 + 1, (k, 1))
+                path.insert(pt1 + 2, (k, 2))
+        total = length()
+        if abs(total - last) < 0.0005:
+            break
+        last = total
+        if kk == 0 and nw > 1 and result[0] == NO_WRAP and result[1] == INSIDE_RADIUS:
+            order[0], order[1] = 1, 0
+            remove(0)
+    return length()
+
+
+class WrappedPaths:
+    """Lengths of the wrapped paths of a :class:`pamkin.paths.PathSet`.
+
+    Args:
+        pathset: The straight-line path set (point positions and conditional points).
+        wraps: Per path, its PathWraps (empty for straight paths).
+    """
+
+    def __init__(self, pathset, wraps: Sequence[Sequence[PathWrap]]) -> None:
+        self.pathset = pathset
+        frames = pathset.kin.frames
+        self.indices = [m for m, ws in enumerate(wraps) if ws]
+        self.specs = {m: [WrapSpec(pw, frames.index(pw.wrap_object.body)) for pw in wraps[m]]
+                      for m in self.indices}
+
+    def lengths(self, state, columns: Sequence[int] | None = None) -> np.ndarray:
+        """(N, n_wrapped) lengths of the wrapped paths (``indices`` order, or only ``columns`` of it) [m]."""
+        ps = self.pathset
+        X, _ = ps.point_positions(state)
+        N = X.shape[0]
+        keep = np.ones((N, ps.n_points), dtype=bool)
+        if len(ps._cond_ids):
+            v = state.q[:, ps._cond_coord]
+            keep[:, ps._cond_ids] = (v >= ps._cond_lo) & (v <= ps._cond_hi)
+        cols = range(len(self.indices)) if columns is None else columns
+        out = np.zeros((N, len(cols)))
+        for col, m in enumerate(self.indices[c] for c in cols):
+            a, b = ps._path_start[m], ps._path_end[m]
+            specs = self.specs[m]
+            for n in range(N):
+                frames = []
+                for w in specs:
+                    Rb, pb = state.body_R[n, w.body], state.body_p[n, w.body]
+                    frames.append((Rb @ w.R, pb + Rb @ w.t))
+                out[n, col] = wrapped_path_length(X[n, a:b], keep[n, a:b], specs, frames)
+        return out
