@@ -46,6 +46,11 @@ class RangeWarning(UserWarning):
     """Coordinates lie outside the model's ranges (values are used as given, never clamped)."""
 
 
+class EquilibriumWarning(UserWarning):
+    """No static muscle equilibrium exists for some (configuration, muscle) pairs (OpenSim raises
+    ``MuscleCannotEquilibrate`` there); pamkin returns NaN forces for them."""
+
+
 class ParameterError(PamkinError, ValueError):
     """A physical parameter is out of range (e.g. a negative optimal fibre length)."""
 

@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from .kinematics import ConfigLike, Kinematics, KinematicsState
 from .osim import OsimModel, load_osim_file
-from .errors import ParameterError, UnsupportedFeatureError
+from .errors import ConfigurationError, EquilibriumWarning, ParameterError, UnsupportedFeatureError
 from .paths import PathResult, PathSet
 from .wrapping import WrappedPaths
 from .thelen2003 import ThelenParams, equilibrium, tendon_force
+from .millard2012 import MillardParams
 from .urdf_build import GAIT2392_DATA, GAIT2392_URDF, cached_urdf, load_model_data
 
 
@@ -76,13 +78,20 @@ class Model:
                 self._fast = None
         elif engine != "numpy":
             raise ValueError(f"engine must be 'compiled' or 'numpy', not {engine!r}")
-        thelen = [m for m in osim.muscles if m.kind == "Thelen2003Muscle"]
-        self._unsupported_force = [m for m in osim.muscles if m.kind != "Thelen2003Muscle"]
+        kinds = [m.kind for m in osim.muscles]
+        self._unsupported_force = [m for m in osim.muscles if m.kind not in FORCE_CLASSES]
+        self._thelen_cols = [i for i, k in enumerate(kinds) if k == "Thelen2003Muscle"]
+        self._millard_cols = [i for i, k in enumerate(kinds) if k == "Millard2012EquilibriumMuscle"]
         self.thelen_params: ThelenParams | None = None
-        if thelen and not self._unsupported_force:
+        self.millard_params: MillardParams | None = None
+        if not self._unsupported_force:
+            thelen = [osim.muscles[i] for i in self._thelen_cols]
             try:
-                self.thelen_params = ThelenParams.from_osim_properties([m.params for m in thelen],
-                                                                       [m.name for m in thelen])
+                if thelen:
+                    self.thelen_params = ThelenParams.from_osim_properties([m.params for m in thelen],
+                                                                           [m.name for m in thelen])
+                if self._millard_cols:
+                    self.millard_params = _millard_params(osim, [osim.muscles[i] for i in self._millard_cols])
             except ParameterError as e:    # name the file the parameter comes from
                 raise ParameterError(f"{osim.path}: {e}") from None
 
@@ -228,15 +237,55 @@ class Model:
         """Moment arms −∂L/∂q (N, n_muscles, n_coordinates) [m; m/m for translations]."""
         return self.path_result(q).dense_moment_arms(len(self.coordinates))
 
-    def _check_forces(self) -> ThelenParams | None:
+    def _check_forces(self) -> None:
         if self._unsupported_force:
             m = self._unsupported_force[0]
             raise UnsupportedFeatureError(
-                self.osim.path, f"muscle forces are implemented for Thelen2003Muscle only; "
+                self.osim.path, f"muscle forces are implemented for {' and '.join(FORCE_CLASSES)} only; "
                 f"{len(self._unsupported_force)} muscle(s) are {m.kind} (kinematics, lengths and moment "
-                "arms work; use the gait2392_thelen2003muscle.osim variant for forces)",
-                element=m.kind, component=m.name)
-        return self.thelen_params     # None only for a model without muscles
+                "arms work)", element=m.kind, component=m.name)
+
+    def _static_forces(self, L: np.ndarray, activation, rigid_tendon: bool, full: bool):
+        """Tendon forces (N, n_muscles) at lengths ``L`` and, if ``full``, the equilibrium (Thelen2003
+        muscles: :mod:`pamkin.thelen2003`; Millard2012: :mod:`pamkin.millard2012`, whose ``failed``
+        entries are NaN and raise an :class:`EquilibriumWarning`)."""
+        self._check_forces()
+        if self.millard_params is None:
+            if self.thelen_params is None:      # a model without muscles
+                return np.zeros(L.shape), None
+            if full:
+                eq = equilibrium(L, self.thelen_params, activation, rigid_tendon=rigid_tendon)
+                return eq.tendon_force, eq
+            return tendon_force(L, self.thelen_params, activation, rigid_tendon=rigid_tendon), None
+        from . import millard2012  # noqa: PLC0415
+
+        rigid = True if rigid_tendon else None     # False: each muscle's ignore_tendon_compliance
+        if not self._thelen_cols:
+            eq = millard2012.equilibrium(L, self.millard_params, activation, rigid_tendon=rigid)
+        else:                                   # Thelen2003 and Millard2012 muscles in one model
+            try:
+                act = np.broadcast_to(np.asarray(activation, dtype=float), L.shape)
+            except ValueError:
+                raise ConfigurationError(f"activation of shape {np.shape(activation)} does not broadcast "
+                                         f"to the lengths' shape {L.shape}") from None
+            th, mi = self._thelen_cols, self._millard_cols
+            a = equilibrium(L[:, th], self.thelen_params, act[:, th], rigid_tendon=rigid_tendon)
+            b = millard2012.equilibrium(L[:, mi], self.millard_params, act[:, mi], rigid_tendon=rigid)
+            parts = {}
+            for f in ("fiber_length", "normalized_fiber_length", "pennation_angle", "tendon_length",
+                      "tendon_force", "active_fiber_force", "passive_fiber_force", "clamped", "failed"):
+                x = np.zeros(L.shape, dtype=getattr(b, f).dtype)
+                x[:, th] = getattr(a, f, False)
+                x[:, mi] = getattr(b, f)
+                parts[f] = x
+            eq = millard2012.Equilibrium(**parts)
+        if eq.failed.any():
+            i, j = np.argwhere(eq.failed)[0]
+            warnings.warn(EquilibriumWarning(
+                f"{self.osim.path}: no static equilibrium for {int(eq.failed.sum())} of {eq.failed.size} "
+                f"(configuration, muscle) pairs, e.g. {self.muscles[j]} in configuration {i} (OpenSim 4.6 "
+                "raises MuscleCannotEquilibrate there); their forces are NaN"), stacklevel=3)
+        return eq.tendon_force, eq
 
     def evaluate(self, q: ConfigLike, activation: float | np.ndarray = 1.0,
                  rigid_tendon: bool = False) -> MuscleState:
@@ -247,12 +296,10 @@ class Model:
             activation: Activation in [0, 1] (scalar, (n_muscles,) or (N, n_muscles)).
             rigid_tendon: Use a rigid tendon instead of the compliant-tendon equilibrium.
         """
-        params = self._check_forces()
+        self._check_forces()
         res = self.path_result(q)
-        if params is None:      # a model without muscles
-            return MuscleState(res, np.zeros(res.lengths.shape), None)
-        eq = equilibrium(res.lengths, params, activation, rigid_tendon=rigid_tendon)
-        return MuscleState(res, eq.tendon_force, eq)
+        F, eq = self._static_forces(res.lengths, activation, rigid_tendon, full=True)
+        return MuscleState(res, F, eq)
 
     def evaluate_chunks(self, q: ConfigLike, chunk: int = 50_000, activation: float | np.ndarray = 1.0,
                         rigid_tendon: bool = False):
@@ -270,12 +317,16 @@ class Model:
 
     def tendon_forces(self, q: ConfigLike, activation: float | np.ndarray = 1.0,
                       rigid_tendon: bool = False) -> np.ndarray:
-        """Static (zero fibre velocity) tendon forces (N, n_muscles) [N], OpenSim's equilibrium."""
-        params = self._check_forces()
-        L = self.lengths(q)
-        if params is None:      # a model without muscles
-            return np.zeros(L.shape)
-        return tendon_force(L, params, activation, rigid_tendon=rigid_tendon)
+        """Static (zero fibre velocity) tendon forces (N, n_muscles) [N], OpenSim's equilibrium.
+
+        Thelen2003Muscle and Millard2012EquilibriumMuscle (see :mod:`pamkin.thelen2003`,
+        :mod:`pamkin.millard2012`). ``rigid_tendon=True`` makes every tendon rigid; with False a
+        Millard muscle's tendon is rigid where the file sets ``ignore_tendon_compliance``. Where
+        OpenSim finds no equilibrium for a Millard muscle the force is NaN and an
+        :class:`~pamkin.errors.EquilibriumWarning` is issued.
+        """
+        self._check_forces()
+        return self._static_forces(self.lengths(q), activation, rigid_tendon, full=False)[0]
 
     def torques(self, q: ConfigLike, activation: float | np.ndarray = 1.0,
                 rigid_tendon: bool = False) -> np.ndarray:
@@ -353,6 +404,21 @@ class Model:
         return self.kinematics.fill_dependent(q)
 
 
+#: Muscle classes with static forces.
+FORCE_CLASSES = ("Thelen2003Muscle", "Millard2012EquilibriumMuscle")
+
+
+def _millard_params(osim: OsimModel, muscles) -> MillardParams:
+    """Millard2012 parameters: the imported scalar properties, completed by the curve properties,
+    ``fiber_damping``, ``ignore_tendon_compliance`` and ``min_control`` read from the model file
+    (OpenSim's defaults when the model does not come from a readable file)."""
+    from .millard2012 import osim_properties  # noqa: PLC0415
+
+    extra = osim_properties(osim.path) if Path(osim.path).is_file() else {}
+    return MillardParams.from_osim_properties([{**m.params, **extra.get(m.name, {})} for m in muscles],
+                                              [m.name for m in muscles])
+
+
 def load_osim(path: str | os.PathLike, engine: str = "compiled",
               geometry: str | os.PathLike | None = None) -> Model:
     """Load an OpenSim ``.osim`` model: import → Xacro → URDF (cached) → Pinocchio.
@@ -394,7 +460,8 @@ class MuscleState:
     Attributes:
         paths: Lengths and sparse moment arms.
         tendon_forces: (N, n_muscles) [N].
-        equilibrium: The fibre/tendon equilibrium (fibre lengths, pennation, clamping).
+        equilibrium: The fibre/tendon equilibrium (fibre lengths, pennation, clamping; for models with
+            Millard2012 muscles a :class:`pamkin.millard2012.Equilibrium`, which also flags ``failed``).
     """
 
     def __init__(self, paths: PathResult, tendon_forces: np.ndarray, eq) -> None:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import pamkin
-from pamkin.errors import ParameterError, RangeWarning, UnsupportedFeatureError
+from pamkin.errors import ParameterError, RangeWarning
 from pamkin.osim import ConditionalPathPoint
 from pamkin.paths import CONDITIONAL_TOLERANCE, path_length, path_moment_arm, point_velocity
 
@@ -165,12 +165,13 @@ def test_rigid_tendon_option(gait2392):
     assert Fr.shape == (10, 92) and np.isfinite(Fr).all() and (Fr >= 0).all()
 
 
-def test_millard_forces_are_refused_clearly(millard_path):
+def test_millard_forces(millard_path):
+    """Millard2012 forces (pamkin.millard2012; compared with OpenSim in test_millard2012.py)."""
     model = pamkin.load_osim(millard_path)
     q = model.default_q
     assert model.lengths(q).shape == (1, 92)      # paths work
-    with pytest.raises(UnsupportedFeatureError, match="Millard2012EquilibriumMuscle.*glut_med1_r"):
-        model.tendon_forces(q)
+    F = model.tendon_forces(q)
+    assert F.shape == (1, 92) and np.isfinite(F).all() and (F >= 0).all()
 
 
 @pytest.mark.parametrize("prop,value,match", [("optimal_fiber_length", "-0.05", "optimal_fiber_length"),
