@@ -6,6 +6,7 @@ Start with :func:`load_osim`, which imports an OpenSim model and returns a
 
 from .errors import (
     ConfigurationError,
+    EquilibriumWarning,
     OsimError,
     PamkinError,
     ParameterError,
@@ -16,6 +17,7 @@ from .model import Model, gait2392, load_osim
 
 __all__ = [
     "ConfigurationError",
+    "EquilibriumWarning",
     "Model",
     "OsimError",
     "PamkinError",

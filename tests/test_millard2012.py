@@ -228,7 +228,8 @@ def test_converged_entries_are_in_force_balance(l0, lts, alpha0, s, a):
     assert not eq.failed.any()                         # the damped model always finds one here
     free = ~eq.clamped[:, 0]
     along = ((eq.active_fiber_force + eq.passive_fiber_force) * np.cos(eq.pennation_angle))[:, 0]
-    np.testing.assert_allclose(along[free], eq.tendon_force[free, 0], rtol=0, atol=1e-8 * 1000.0)
+    # OpenSim stops at |force error| < 1e-8·Fmax (Fmax = 1000 N here); a little slack for rounding
+    np.testing.assert_allclose(along[free], eq.tendon_force[free, 0], rtol=0, atol=1.1e-8 * 1000.0)
     np.testing.assert_allclose(eq.tendon_length + eq.fiber_length * np.cos(eq.pennation_angle), lmt,
                                rtol=1e-13, atol=1e-15)
     assert (eq.tendon_force >= 0).all()
