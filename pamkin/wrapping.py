@@ -18,7 +18,9 @@ with quadrants (``+x`` … ``-z``, ``all``) and ``active`` flags, from the sourc
 (read, not copied). ``WrapTorus`` is refused (its closest-circle search is MINPACK's ``lmdif``
 with loose tolerances, whose iterates would have to be reproduced).
 
-The surface computations are scalar numba kernels; the path loop is Python. Lengths match OpenSim
+The surface computations are scalar numba kernels; the path loop exists twice, in Python
+(:func:`wrapped_path_length`, the readable reference) and compiled (parallel over configurations,
+used by default; both give identical numbers, tested). Lengths match OpenSim
 4.6 to round-off; they are piecewise smooth: they jump where a wrap switches on or off, where
 OpenSim's discretisations change (number of ellipsoid polyline segments, tangency iterations).
 Moment arms of wrapped paths are central differences of these lengths (see
@@ -33,14 +35,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-
-try:
-    from numba import njit
-except ImportError:  # pragma: no cover - numba is a declared dependency
-    def njit(*args, **kwargs):
-        if args and callable(args[0]):
-            return args[0]
-        return lambda f: f
+from numba import njit, prange
 
 #: WrapAction codes of OpenSim's WrapObject.
 NO_WRAP, INSIDE_RADIUS, WRAPPED, MANDATORY_WRAP = 0, 1, 2, 3
@@ -990,6 +985,170 @@ def wrapped_path_length(X: np.ndarray, active: np.ndarray, wraps: Sequence[WrapS
     return length()
 
 
+# ----------------------------------------------------------------------------- the same loop, compiled
+@njit(**_OPTS)
+def _wrap_any(kind, a, b, dims, method, axis, sign, single):
+    if kind == CYLINDER:
+        return wrap_cylinder(a, b, dims[0], dims[1], axis, sign, single)
+    if kind == SPHERE:
+        return wrap_sphere(a, b, dims[0], axis, sign)
+    return wrap_ellipsoid(a, b, dims, method, axis, sign)
+
+
+@njit(**_OPTS)
+def _ground(e, n, pos, cache, cached):
+    if e < n:
+        return pos[e]
+    if not cached[e]:
+        cache[e] = pos[e]
+        cached[e] = True
+    return cache[e]
+
+
+@njit(**_OPTS)
+def _same_object(e1, e2, n, objs):
+    return e1 >= n and e2 >= n and objs[(e1 - n) // 2] == objs[(e2 - n) // 2]
+
+
+@njit(**_OPTS)
+def _length(path, npath, n, objs, pos, cache, cached, surf):
+    total = 0.0
+    for j in range(npath - 1):
+        e1, e2 = path[j], path[j + 1]
+        if _same_object(e1, e2, n, objs):
+            total += surf[e2]
+        else:
+            total += _norm(_ground(e2, n, pos, cache, cached) - _ground(e1, n, pos, cache, cached))
+    return total
+
+
+@njit(**_OPTS)
+def _remove(path, npath, e):
+    for j in range(npath):
+        if path[j] == e:
+            for k in range(j, npath - 2):
+                path[k] = path[k + 2]
+            return npath - 2
+    return npath
+
+
+@njit(**_OPTS)
+def _index(path, npath, e):
+    for j in range(npath):
+        if path[j] == e:
+            return j
+    return -1
+
+
+@njit(**_OPTS)
+def _path_length(X, active, kinds, dims, methods, axes, signs, rstart, rend, actives, objs, Rw, pw):
+    """:func:`wrapped_path_length` compiled: path entries are point indices (< n) or n + 2 k + (0 | 1) for
+    wrap k's first and second tangent point."""
+    n = X.shape[0]
+    nw = kinds.shape[0]
+    cap = n + 2 * nw
+    path = np.empty(cap, dtype=np.int64)
+    npath = 0
+    for i in range(n):
+        if active[i]:
+            path[npath] = i
+            npath += 1
+    pos = np.zeros((cap, 3))
+    pos[:n] = X
+    cache = np.zeros((cap, 3))
+    cached = np.zeros(cap, dtype=np.bool_)
+    surf = np.zeros(cap)
+    order = np.arange(nw)
+    result = np.zeros(nw, dtype=np.int64)
+    last = np.inf
+    single = nw == 1
+    n_iter = 1 if nw < 2 else 8
+    for kk in range(n_iter):
+        for i in range(nw):
+            result[i] = NO_WRAP
+            k = order[i]
+            npath = _remove(path, npath, n + 2 * k)
+            if not actives[k]:
+                continue
+            ws = 0 if rstart[k] < 1 else rstart[k] - 1
+            we = n - 1 if rend[k] < 1 else rend[k] - 1
+            jf = ws
+            while jf <= we and not active[jf]:
+                jf += 1
+            if jf > we:
+                return _length(path, npath, n, objs, pos, cache, cached, surf)
+            jr = we
+            while jr >= ws and not active[jr]:
+                jr -= 1
+            start, end = _index(path, npath, jf), _index(path, npath, jr)
+            R, p = Rw[k], pw[k]
+            best_pt = -1
+            best_r1 = np.zeros(3)
+            best_r2 = np.zeros(3)
+            best_wl = 0.0
+            min_change = np.inf
+            for pt1 in range(start, end):
+                e1, e2 = path[pt1], path[pt1 + 1]
+                if _same_object(e1, e2, n, objs):
+                    continue
+                a = (pos[e1] - p) @ R
+                b = (pos[e2] - p) @ R
+                code, r1, r2, wl = _wrap_any(kinds[k], a, b, dims[k], methods[k], axes[k], signs[k], single)
+                result[i] = code
+                if code == MANDATORY_WRAP:
+                    best_pt, best_r1, best_r2, best_wl = pt1, r1, r2, wl
+                    break
+                if code == WRAPPED:
+                    g1, g2 = p + R @ r1, p + R @ r2
+                    x1 = _ground(e1, n, pos, cache, cached)
+                    x2 = _ground(e2, n, pos, cache, cached)
+                    change = _norm(g1 - x1) + wl + _norm(x2 - g2) - _norm(x2 - x1)
+                    if change < min_change:
+                        best_pt, best_r1, best_r2, best_wl = pt1, r1, r2, wl
+                        min_change = change
+            if best_pt >= 0:
+                e = n + 2 * k
+                pos[e] = p + R @ best_r1
+                pos[e + 1] = p + R @ best_r2
+                surf[e] = 0.0
+                surf[e + 1] = best_wl
+                for j in range(npath - 1, best_pt, -1):
+                    path[j + 2] = path[j]
+                path[best_pt + 1] = e
+                path[best_pt + 2] = e + 1
+                npath += 2
+        total = _length(path, npath, n, objs, pos, cache, cached, surf)
+        if abs(total - last) < 0.0005:
+            break
+        last = total
+        if kk == 0 and nw > 1 and result[0] == NO_WRAP and result[1] == INSIDE_RADIUS:
+            order[0], order[1] = 1, 0
+            npath = _remove(path, npath, n)
+    return _length(path, npath, n, objs, pos, cache, cached, surf)
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def _lengths_batch(X, keep, body_R, body_p, pstart, pend, wstart, wend, kinds, dims, methods, axes, signs,
+                   rstart, rend, actives, objs, wbody, wR, wt):
+    N = X.shape[0]
+    M = pstart.shape[0]
+    out = np.zeros((N, M))
+    for i in prange(N):
+        for m in range(M):
+            a, b = pstart[m], pend[m]
+            w0, w1 = wstart[m], wend[m]
+            Rw = np.empty((w1 - w0, 3, 3))
+            pw = np.empty((w1 - w0, 3))
+            for k in range(w0, w1):
+                Rb = body_R[i, wbody[k]]
+                Rw[k - w0] = Rb @ wR[k]
+                pw[k - w0] = body_p[i, wbody[k]] + Rb @ wt[k]
+            out[i, m] = _path_length(X[i, a:b], keep[i, a:b], kinds[w0:w1], dims[w0:w1], methods[w0:w1],
+                                     axes[w0:w1], signs[w0:w1], rstart[w0:w1], rend[w0:w1], actives[w0:w1],
+                                     objs[w0:w1], Rw, pw)
+    return out
+
+
 class WrappedPaths:
     """Lengths of the wrapped paths of a :class:`pamkin.paths.PathSet`.
 
@@ -998,12 +1157,34 @@ class WrappedPaths:
         wraps: Per path, its PathWraps (empty for straight paths).
     """
 
-    def __init__(self, pathset, wraps: Sequence[Sequence[PathWrap]]) -> None:
+    def __init__(self, pathset, wraps: Sequence[Sequence[PathWrap]], compiled: bool = True) -> None:
         self.pathset = pathset
+        self.compiled = compiled
         frames = pathset.kin.frames
         self.indices = [m for m, ws in enumerate(wraps) if ws]
         self.specs = {m: [WrapSpec(pw, frames.index(pw.wrap_object.body)) for pw in wraps[m]]
                       for m in self.indices}
+        specs = [w for m in self.indices for w in self.specs[m]]
+        counts = np.array([len(self.specs[m]) for m in self.indices], dtype=np.int64)
+        self._wend = np.cumsum(counts)
+        self._wstart = self._wend - counts
+        self._pstart = np.array([pathset._path_start[m] for m in self.indices], dtype=np.int64)
+        self._pend = np.array([pathset._path_end[m] for m in self.indices], dtype=np.int64)
+        names = sorted({w.object for w in specs})
+        self._arrays = (
+            np.array([w.kind for w in specs], dtype=np.int64),
+            np.array([np.pad(w.dims, (0, 3 - len(w.dims))) for w in specs], dtype=float).reshape(-1, 3),
+            np.array([w.method for w in specs], dtype=np.int64),
+            np.array([w.axis for w in specs], dtype=np.int64),
+            np.array([w.sign for w in specs], dtype=np.int64),
+            np.array([w.start for w in specs], dtype=np.int64),
+            np.array([w.end for w in specs], dtype=np.int64),
+            np.array([w.active for w in specs], dtype=np.bool_),
+            np.array([names.index(w.object) for w in specs], dtype=np.int64),
+            np.array([w.body for w in specs], dtype=np.int64),
+            np.array([w.R for w in specs], dtype=float).reshape(-1, 3, 3),
+            np.array([w.t for w in specs], dtype=float).reshape(-1, 3),
+        )
 
     def lengths(self, state, columns: Sequence[int] | None = None) -> np.ndarray:
         """(N, n_wrapped) lengths of the wrapped paths (``indices`` order, or only ``columns`` of it) [m]."""
@@ -1015,6 +1196,13 @@ class WrappedPaths:
             v = state.q[:, ps._cond_coord]
             keep[:, ps._cond_ids] = (v >= ps._cond_lo) & (v <= ps._cond_hi)
         cols = range(len(self.indices)) if columns is None else columns
+        if self.compiled:
+            cols = np.asarray(cols, dtype=np.int64)
+            (kinds, dims, methods, axes, signs, rstart, rend, actives, objs, wbody, wR, wt) = self._arrays
+            return _lengths_batch(np.ascontiguousarray(X), keep, np.ascontiguousarray(state.body_R),
+                                  np.ascontiguousarray(state.body_p), self._pstart[cols], self._pend[cols],
+                                  self._wstart[cols], self._wend[cols], kinds, dims, methods, axes, signs,
+                                  rstart, rend, actives, objs, wbody, wR, wt)
         out = np.zeros((N, len(cols)))
         for col, m in enumerate(self.indices[c] for c in cols):
             a, b = ps._path_start[m], ps._path_end[m]

@@ -192,6 +192,17 @@ def test_two_link_arm_every_wrap_type(arm_path):
     assert differs.tolist() == [m != "inactive" for m in model.muscles]
 
 
+def test_compiled_loop_equals_python_loop(arm_path):
+    for path in (arm_path, ARM26):
+        model = _load(path)
+        state = model.kinematics.forward(model.random_q(60, seed=4))
+        W = model.wrapping
+        assert W.compiled
+        fast = W.lengths(state)
+        W.compiled = False
+        assert np.array_equal(W.lengths(state), fast)
+
+
 def test_torus_and_bad_wrap_settings_are_refused(tmp_path):
     p = two_link_arm(tmp_path / "a.osim")
     text = p.read_text()
