@@ -1129,6 +1129,22 @@ def point_from_dict(d: dict) -> AnyPathPoint:
     return PathPoint(d["name"], d["body"], loc)  # type: ignore[arg-type]
 
 
+def _wrap_to_dict(w: PathWrap) -> dict:
+    o = w.wrap_object
+    return {"name": w.name, "method": w.method, "range": list(w.range),
+            "wrap_object": {"name": o.name, "kind": o.kind, "body": o.body, "rotation": [list(r) for r in o.rotation],
+                            "translation": list(o.translation), "quadrant": o.quadrant, "active": o.active,
+                            "dimensions": list(o.dimensions)}}
+
+
+def _wrap_from_dict(d: dict) -> PathWrap:
+    o = d["wrap_object"]
+    wo = WrapObject(o["name"], o["kind"], o["body"], tuple(tuple(map(float, r)) for r in o["rotation"]),
+                    tuple(map(float, o["translation"])), o["quadrant"], bool(o["active"]),  # type: ignore[arg-type]
+                    tuple(map(float, o["dimensions"])))
+    return PathWrap(d["name"], wo, d["method"], tuple(int(v) for v in d["range"]))  # type: ignore[arg-type]
+
+
 def model_to_dict(model: OsimModel) -> dict:
     """Lossless plain-data form of an imported model (what the project's YAML files hold)."""
     d = {
@@ -1149,7 +1165,9 @@ def model_to_dict(model: OsimModel) -> dict:
                          "default_value": c.default_value, "locked": c.locked, "clamped": c.clamped,
                          "rotational": c.rotational} for c in model.coordinates],
         "muscles": [{"name": m.name, "kind": m.kind, "params": dict(m.params),
-                     "points": [_point_to_dict(p) for p in m.points]} for m in model.muscles],
+                     "points": [_point_to_dict(p) for p in m.points],
+                     **({"wraps": [_wrap_to_dict(w) for w in m.wraps]} if m.wraps else {})}
+                    for m in model.muscles],
     }
     if model.couplers:
         d["couplers"] = [{"name": k.name, "dependent": k.dependent, "independent": k.independent,
@@ -1176,7 +1194,8 @@ def model_from_dict(d: dict, path: str = "<data>") -> OsimModel:
                                      bool(c["locked"]), bool(c["clamped"]), bool(c["rotational"]))
                           for c in d["coordinates"]),
         muscles=tuple(Muscle(m["name"], m["kind"], tuple(point_from_dict(p) for p in m["points"]),
-                             {k: float(v) for k, v in m["params"].items()}) for m in d["muscles"]),
+                             {k: float(v) for k, v in m["params"].items()},
+                             tuple(_wrap_from_dict(w) for w in m.get("wraps", []))) for m in d["muscles"]),
         credits=d.get("credits", ""),
         couplers=tuple(CoordinateCoupler(k["name"], k["dependent"], k["independent"],
                                          function_from_dict(k["function"]), float(k.get("scale_factor", 1.0)))

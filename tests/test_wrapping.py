@@ -11,11 +11,17 @@ import warnings
 
 import numpy as np
 import pytest
+import yaml
 from opensim_ref import SHARED, opensim_reference
 
 import pamkin
 from pamkin.errors import OsimError, UnsupportedFeatureError
-from pamkin.osim import SkippedComponentsWarning
+from pamkin.osim import (
+    SkippedComponentsWarning,
+    load_osim_file,
+    model_from_dict,
+    model_to_dict,
+)
 
 MODELS = SHARED / "opensim-models" / "Models"
 ARM26 = MODELS / "Arm26" / "arm26.osim"
@@ -123,9 +129,17 @@ def _pin(name, parent, child, coord, rng, at):
             f"</frames></PinJoint>")
 
 
-def _body(name, wraps=""):
+def _body(name, wraps="", components=""):
     return (f'<Body name="{name}"><mass>1</mass><mass_center>0 -0.15 0</mass_center>'
-            f"<inertia>0.01 0.01 0.01 0 0 0</inertia><WrapObjectSet><objects>{wraps}</objects></WrapObjectSet></Body>")
+            f"<inertia>0.01 0.01 0.01 0 0 0</inertia><components>{components}</components>"
+            f"<WrapObjectSet><objects>{wraps}</objects></WrapObjectSet></Body>")
+
+
+# a wrap object on an offset frame of the lower arm
+PAD_FRAME = ('<PhysicalOffsetFrame name="pad_frame"><socket_parent>..</socket_parent><translation>0.002 -0.15 0.001'
+             "</translation><orientation>0.1 -0.05 0.3</orientation><WrapObjectSet><objects>"
+             + _wrap("WrapCylinder", "pad", (0.012, 0.05), translation="0 0 0.002") + "</objects></WrapObjectSet>"
+             "</PhysicalOffsetFrame>")
 
 
 ELBOW_WRAPS = "".join([
@@ -160,13 +174,14 @@ TWO_LINK_MUSCLES = [
     # two wraps on one segment: OpenSim's iteration between them
     ("cyl_ell", BACK, [("cyl", "hybrid", "-1 -1"), ("ell_mx", "hybrid", "-1 -1")]),
     ("sph_cyl", BACK, [("sph", "hybrid", "-1 -1"), ("cyl_mx", "hybrid", "-1 -1")]),
+    ("offset_frame", [("upper", "-0.025 -0.15 0.01"), ("lower", "-0.005 -0.25 0")], [("pad", "hybrid", "-1 -1")]),
 ]
 
 
 def two_link_arm(path, muscles=TWO_LINK_MUSCLES):
     text = ('<?xml version="1.0" encoding="UTF-8" ?><OpenSimDocument Version="40000"><Model name="wraparm">'
             f'<Ground name="ground"><WrapObjectSet><objects>{SHOULDER_WRAPS}</objects></WrapObjectSet></Ground>'
-            f"<BodySet><objects>{_body('upper', ELBOW_WRAPS)}{_body('lower')}</objects></BodySet>"
+            f"<BodySet><objects>{_body('upper', ELBOW_WRAPS)}{_body('lower', components=PAD_FRAME)}</objects></BodySet>"
             f"<JointSet><objects>{_pin('shoulder', 'ground', 'upper', 'q1', '-1 1', '0 0 0')}"
             f"{_pin('elbow', 'upper', 'lower', 'q2', '0 2.4', '0 -0.3 0')}</objects></JointSet>"
             f"<ForceSet><objects>{''.join(_muscle(*m) for m in muscles)}</objects></ForceSet>"
@@ -190,6 +205,15 @@ def test_two_link_arm_every_wrap_type(arm_path):
     wrapped = model.lengths(q)
     differs = np.abs(wrapped - straight).max(axis=0) > 1e-4
     assert differs.tolist() == [m != "inactive" for m in model.muscles]
+
+
+def test_wraps_survive_the_data_round_trip():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SkippedComponentsWarning)
+        m = load_osim_file(ARM26)
+    back = model_from_dict(yaml.safe_load(yaml.safe_dump(model_to_dict(m))), m.path)
+    assert back.muscles == m.muscles and all(a.wraps == b.wraps for a, b in zip(back.muscles, m.muscles))
+    assert sum(len(x.wraps) for x in back.muscles) == 7
 
 
 def test_compiled_loop_equals_python_loop(arm_path):
