@@ -35,13 +35,16 @@ stays the fast 1-D/2-D fit) and ``examples/optimize_v2.toml`` switches the measu
     [limits]
     region_m = 0.05              # half-width of every route point's box around its seed [m]
     min_point_distance_m = 0.01  # between successive route points
-    bone_clearance = true        # route segments clear the bone-shaft capsules by the PAM radius
+    bone_clearance = true        # route segments clear the bone-shaft capsules by the PAM radius (with bone_mesh: until its rounds)
     kmax_scale = 1.0             # contraction limit = kmax_scale * kmax(l0)
     pretension_scale = 1.0       # stretch limit = pretension_scale * Festo's limit
     fix_lengths = false          # keep the seed resting and tendon lengths (move attachment points only)
     move_moving_points = true    # offset points that move with a coordinate (the patella) within the region
     rated_force = false          # (v2) force per PAM <= Festo's rated force at every constraint sample
     one_segment = false          # (v2) the PAM (+ fittings) fits on one straight segment of its route
+    bone_mesh = false            # (v2) attachment points on their bone (3..12 mm out), segments clear of the
+                                 #      real bone meshes at random, sweep and gait poses (optimize.bone_cuts)
+    bone_rounds = 10             # (v2) largest number of re-linearisation rounds of the bone-mesh rows
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
 """
@@ -65,7 +68,7 @@ _SECTIONS = {
                "bone_clearance": "bone_clearance", "kmax_scale": "kmax_scale",
                "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths",
                "move_moving_points": "move_moving_points", "rated_force": "rated_force",
-               "one_segment": "one_segment"},
+               "one_segment": "one_segment", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds"},
 }
 
 
@@ -112,6 +115,8 @@ class RunConfig:
     move_moving_points: bool = True
     rated_force: bool = False
     one_segment: bool = False
+    bone_mesh: bool = False
+    bone_rounds: int = 10
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     source: str = ""
 
@@ -169,6 +174,8 @@ class RunConfig:
             raise bad("limits.pretension_scale", f"must lie in [0, 1], got {self.pretension_scale}")
         if self.workers < 1:
             raise bad("workers", f"must be >= 1, got {self.workers}")
+        if not 1 <= self.bone_rounds <= 20:
+            raise bad("limits.bone_rounds", f"must lie in [1, 20], got {self.bone_rounds}")
         if self.max_iter < 1:
             raise bad("max_iter", f"must be >= 1, got {self.max_iter}")
         if not isinstance(self.regions, dict):

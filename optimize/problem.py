@@ -51,6 +51,7 @@ class Solution:
     torque_samples: dict[str, np.ndarray]
     seconds: float
     z: np.ndarray | None = None
+    skip_capsules: bool = False         # checked against the bone meshes instead of the capsules
 
 
 def _point_segment_distance(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -61,6 +62,10 @@ def _point_segment_distance(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.n
 
 
 #: Margins that keep the audit's limits when they are checked between the samples.
+#: Penalty of the elastic (bone-clearance) rows per metre of violation (objective units: NRMSE²).
+CUT_PENALTY = 3000.0
+#: The balls' slack is a squared length [m²]: scaled so that 1 mm outside a 12 mm ball costs ~1 mm of a row.
+BALL_PENALTY_SCALE = 40.0
 RATED_MARGIN = 0.02              # force below 98 % of the rated force
 SEGMENT_MARGIN = 0.002           # [m] the PAM clears its segment's ends
 
@@ -84,6 +89,7 @@ class ActuatorProblem:
         self.mount: int | None = None  # the segment the PAM sits on (one_segment)
         self.npar = ca.SX.sym("n_parallel")      # a parameter: one solver serves 1..3 parallel PAMs
         self._solver = None
+        self._cut_solvers: dict[int, object] = {}
         pts = data.pam.points
         # every route point has 3 decision variables: a body-fixed point its location, a point moving
         # with a coordinate (e.g. the patella) a constant offset of its path in its body
@@ -271,10 +277,83 @@ class ActuatorProblem:
         return self._solution(z, float(res["f"]), stats.get("return_status", "?"), bool(stats.get("success")),
                               time.perf_counter() - t0, n_parallel)
 
+    def cut_solver(self, k: int):
+        """IPOPT solver of the problem with ``k`` elastic linear rows ``W z + w0 + s ≥ 0`` and, per
+        route point i, an elastic ball ``r_i² − |ℓ_i − c_i|² + s_i ≥ 0`` (s ≥ 0, penalty
+        :data:`CUT_PENALTY` · Σ s): W, w0, c and r are parameters, filled each round by
+        :mod:`optimize.bone_cuts` (built once per row count)."""
+        if k not in self._cut_solvers:
+            nz = self.z.shape[0]
+            npt = len(self.free)
+            s = ca.SX.sym("s", k + npt)
+            W = ca.SX.sym("W", k, nz)
+            w0 = ca.SX.sym("w0", k)
+            c = ca.SX.sym("c", 3 * npt)
+            r2 = ca.SX.sym("r2", npt)
+            ball = [r2[i] - ca.sumsqr(self.z[3 * i:3 * i + 3] - c[3 * i:3 * i + 3]) for i in range(npt)]
+            g = ca.vertcat(self.g, ca.mtimes(W, self.z) + w0 + s[:k], ca.vertcat(*ball) + s[k:])
+            nlp = {"x": ca.vertcat(self.z, s), "p": ca.vertcat(self.npar, ca.vec(W), w0, c, r2),
+                   "f": self.J + CUT_PENALTY * ca.sum1(s[:k]) + CUT_PENALTY * BALL_PENALTY_SCALE * ca.sum1(s[k:]),
+                   "g": g}
+            opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": self.cfg.max_iter,
+                    "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.acceptable_iter": 5,
+                    "ipopt.mu_strategy": "adaptive", "ipopt.sb": "yes"}
+            self._cut_solvers[k] = ca.nlpsol("pam_cuts", "ipopt", nlp, opts)
+        return self._cut_solvers[k]
+
+    def solve_with_rows(self, z0: np.ndarray, n_parallel: int, W: np.ndarray, w0: np.ndarray,
+                        lbx: np.ndarray, ubx: np.ndarray, centres: np.ndarray | None = None,
+                        radii: np.ndarray | None = None) -> tuple[Solution, float]:
+        """Solve from ``z0`` with the elastic rows ``W z + w0 ≥ 0``, the elastic balls
+        ``|ℓ_i − centres_i| ≤ radii_i`` (route point i; ``inf``: none) and bounds ``lbx``/``ubx`` on z
+        (a trust region). Rows are padded to a multiple of 64 (inactive rows: 0·z + 1 ≥ 0).
+
+        Returns:
+            The solution (its success and violations are those of the problem's own constraints)
+            and the largest slack of a linear row [m].
+        """
+        t0 = time.perf_counter()
+        nz = self.z.shape[0]
+        npt = len(self.free)
+        k = max(64, int(np.ceil(len(W) / 64.0)) * 64)
+        Wp = np.zeros((k, nz))
+        w0p = np.ones(k)
+        Wp[:len(W)] = W
+        w0p[:len(W)] = w0
+        c = np.zeros((npt, 3)) if centres is None else np.array(centres, float)
+        r = np.full(npt, np.inf) if radii is None else np.asarray(radii, float)
+        inactive = ~np.isfinite(r)
+        c[inactive] = 0.0
+        r2 = np.where(inactive, 1e6, r ** 2)
+        pts = z0[:3 * npt].reshape(npt, 3)
+        slack0 = np.concatenate([np.maximum(-(Wp @ z0 + w0p), 0.0),
+                                 np.maximum(np.sum((pts - c) ** 2, axis=1) - r2, 0.0)])
+        solver = self.cut_solver(k)
+        lbg = np.where(self._capsule_rows(), -np.inf, self.lbg)     # the mesh rows replace the capsules
+        res = solver(x0=np.concatenate([z0, slack0]),
+                     p=np.concatenate([[n_parallel], Wp.ravel(order="F"), w0p, c.ravel(), r2]),
+                     lbx=np.concatenate([lbx, np.zeros(k + npt)]), ubx=np.concatenate([ubx, np.full(k + npt, np.inf)]),
+                     lbg=np.concatenate([lbg, np.zeros(k + npt)]),
+                     ubg=np.concatenate([self.ubg, np.full(k + npt, np.inf)]))
+        stats = solver.stats()
+        x = np.array(res["x"]).ravel()
+        z = x[:nz]
+        slack = float(np.max(x[nz:nz + k], initial=0.0))
+        f = float(ca.Function("J", [self.z, self.npar], [self.J])(z, n_parallel))
+        sol = self._solution(z, f, stats.get("return_status", "?"), bool(stats.get("success")),
+                             time.perf_counter() - t0, n_parallel, skip_capsules=True)
+        return sol, slack
+
+    def _capsule_rows(self) -> np.ndarray:
+        """Mask of the bone-capsule clearance rows of :attr:`g`."""
+        return np.array([" clears " in f for f in self.family], dtype=bool)
+
     def _solution(self, z: np.ndarray, f: float, status: str, success: bool, seconds: float,
-                  n_parallel: int = 1) -> Solution:
+                  n_parallel: int = 1, skip_capsules: bool = False) -> Solution:
         gval = np.array(ca.Function("g", [self.z, self.npar], [self.g])(z, n_parallel)).ravel()
         viol = np.maximum(self.lbg - gval, 0) + np.maximum(gval - self.ubg, 0)
+        if skip_capsules:         # bone-mesh rounds: the exact meshes replace the capsules
+            viol = np.where(self._capsule_rows(), 0.0, viol)
         violations: dict[str, float] = {}
         for fam, v in zip(self.family, viol):
             violations[fam] = max(violations.get(fam, 0.0), float(v))
@@ -286,14 +365,17 @@ class ActuatorProblem:
             val = np.array(ca.Function("t", [self.z, self.npar], [tr])(z, n_parallel)).ravel()
             torques[label] = val
             nrmse[label] = float(np.sqrt(np.mean((val - th) ** 2)) / peak) if peak > 0 else float("nan")
+        violations = {k: v for k, v in violations.items() if not (skip_capsules and " clears " in k)}
         return Solution(self.d, n_parallel, pts, float(z[-2]), float(z[-1]), f, status,
-                        success and max(viol, default=0) <= 1e-6, violations, nrmse, torques, seconds, z.copy())
+                        success and max(viol, default=0) <= 1e-6, violations, nrmse, torques, seconds, z.copy(),
+                        skip_capsules)
 
     def finalize(self, sol: Solution) -> Solution:
         """The solution as saved: the tendon clipped at 0 (IPOPT's bound relaxation can leave it at
         −1e-9), with torques and constraint values re-evaluated there."""
         z = sol.z.copy()
         z[-1] = max(z[-1], 0.0)
-        out = self._solution(z, sol.objective, sol.status, sol.success, sol.seconds, sol.n_parallel)
+        out = self._solution(z, sol.objective, sol.status, sol.success, sol.seconds, sol.n_parallel,
+                             sol.skip_capsules)
         out.success = sol.success and max(out.violations.values(), default=0.0) <= 1e-6
         return out

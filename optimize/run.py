@@ -48,6 +48,7 @@ class ActuatorResult:
     violations: dict[str, float] = field(default_factory=dict)
     seconds: float = 0.0
     relaxed: list[str] = field(default_factory=list)     # constraint groups this actuator could not meet
+    bone: dict = field(default_factory=dict)             # bone-mesh stage: exact clearance and rounds
 
 
 # worker state (fork): set before the pool starts
@@ -121,6 +122,18 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
             pts = [p + rng.uniform(-0.5, 0.5, 3) * r for p, r in zip(best.points, regions)]
             attempt(best.diameter_mm, best.n_parallel, pts, None, None, f"perturbed {m + 1}", relaxed)
     assert best is not None
+    bone: dict = {}
+    if cfg.bone_mesh and best.success:
+        from .bone_cuts import BoneCuts, bone_check_poses, bone_stage  # noqa: PLC0415
+
+        cuts = BoneCuts(pam, _STATE["human"], _STATE["bones"],
+                        *bone_check_poses(_STATE["human"], _STATE["rom"], pam, cfg.seed))
+        lines: list[str] = []
+        before = best
+        best, measure, info = bone_stage(best_problem[0], best, cuts, cfg.bone_rounds, lines)
+        names = [p.name for p in pam.points]
+        bone = {"rounds": info, "before": cuts.measure(np.array(before.points)).summary(names),
+                **measure.summary(names), "clear": bool(measure.violation() == 0.0), "log": lines}
     best = best_problem[0].finalize(best)
     new_points = []
     for pt, loc in zip(pam.points, best.points):
@@ -135,7 +148,17 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     sample_q = {label: data.q[rows] for _, rows, _, _, label in data.objective}
     return ActuatorResult(pam.id, pam.name, new, best.status, best.success, attempts, best.nrmse_samples,
                           best.torque_samples, sample_q, best.violations, time.perf_counter() - t0,
-                          sorted(best_problem[0].relax))
+                          sorted(best_problem[0].relax), bone)
+
+
+def bone_line(bone: dict) -> str:
+    """One line: the exact bone clearance of an actuator after the bone-mesh stage."""
+    segs = "; ".join(f"segment {k} {v['depth_mm']:.1f} mm into {v['bone']}"
+                     for k, v in bone["segments_into_bone"].items())
+    pts = "; ".join(f"point {k} {v:.1f} mm" for k, v in bone["point_distance_mm"].items() if not 0 <= v <= 20)
+    what = "; ".join(x for x in (segs, pts) if x)
+    return ("clear" if bone["clear"] else "NOT clear: " + what) + \
+        f" (max penetration {bone['max_segment_penetration_mm']:.1f} mm at the bone-check poses)"
 
 
 def shift_function(fn, delta: float):
@@ -192,7 +215,11 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
         raise PamkinError(f"unknown actuator id(s) {unknown}")
     pams = [seed_design.pam(i) for i in ids]
     data = [actuator_data(p, human, rom, cfg, seed_design.fitting_length_m) for p in pams]
-    _STATE.update(cfg=cfg, data=data)
+    _STATE.update(cfg=cfg, data=data, human=human, rom=rom)
+    if cfg.bone_mesh:
+        from pamkin.bones import BoneSet  # noqa: PLC0415
+
+        _STATE["bones"] = BoneSet(human)
     tasks = [(k, 0) for k in range(len(pams))]
     results: list[ActuatorResult] = []
     if cfg.workers > 1 and len(tasks) > 1:
@@ -295,8 +322,16 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         log.append(f"actuator {r.id} {r.name}: {r.status} in {r.seconds:.1f} s; attempts: " +
                    "; ".join(f"{a['diameter_mm']} mm x{a['n_parallel']} {a['start']}: {a['status']} "
                              f"J={a['objective']:.4g}" for a in r.attempts))
+        if r.bone:
+            log.extend(r.bone["log"])
+            log.append(f"  bone-mesh clearance of actuator {r.id} {r.name}: " + bone_line(r.bone))
     print("solving done; checking every actuator on dense grids (numpy pipeline) ...", file=stream, flush=True)
     summary = summarize(seed, new, results, cfg, progress=_check_progress(stream))
+    bone = {str(r.id): {k: v for k, v in r.bone.items() if k != "log"} for r in results if r.bone}
+    if bone:
+        summary["bone_mesh"] = bone
+        summary["bone_mesh_not_clear"] = [f"{r.id} {r.name}: {bone_line(r.bone)}" for r in results
+                                          if r.bone and not r.bone["clear"]]
     summary["solve_seconds"] = round(solve_seconds, 1)
     summary["total_seconds"] = round(time.perf_counter() - t0, 1)
     save_design(new, out_dir / "design.yaml", _run_header(out_dir, cfg))

@@ -115,19 +115,60 @@ class BoneSet:
         Returns:
             (K,) distances; ``+inf`` for a body without meshes.
         """
+        return self.body_closest(body, points)[0]
+
+    def body_closest(self, body: str, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Signed distance, closest bone-surface point and outward unit normal, in ``body``'s frame.
+
+        Args:
+            body: Body name.
+            points: (K, 3) in the body frame [m].
+
+        Returns:
+            ``(d, c, n)``: (K,) signed distances [m] (negative inside; ``+inf`` for a body without
+            meshes), (K, 3) closest surface points [m] and (K, 3) unit normals pointing out of the
+            bone at them (the direction in which the distance grows: ``∇d``); NaN without meshes.
+        """
         import igl  # noqa: PLC0415
 
         P = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
         out = np.full(len(P), np.inf)
+        C = np.full((len(P), 3), np.nan)
+        N = np.full((len(P), 3), np.nan)
         if len(P) == 0:
-            return out
+            return out, C, N
         for m in self.meshes.get(body, []):
             r = igl.signed_distance(P, m.vertices, m.faces, sign_type=igl.SIGNED_DISTANCE_TYPE_FAST_WINDING_NUMBER)
             # libigl scales the distance by its continuous winding-number sign (1 - 2w): keep only the
             # sign and take the exact distance to the closest surface point
-            s = np.sign(r[0]) * np.linalg.norm(P - r[2], axis=1)
-            out = np.minimum(out, s)
-        return out
+            sign = np.where(r[0] < 0, -1.0, 1.0)
+            diff = P - r[2]
+            dist = np.linalg.norm(diff, axis=1)
+            s = sign * dist
+            # normal: from the closest point towards the query point (outward for points outside,
+            # reversed inside); on the surface itself, the closest face's normal
+            tri = m.vertices[m.faces[r[1]]]
+            fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+            on = dist < 1e-9
+            nrm = np.where(on[:, None], fn, sign[:, None] * diff / np.maximum(dist, 1e-300)[:, None])
+            better = s < out
+            out[better] = s[better]
+            C[better] = r[2][better]
+            N[better] = nrm[better]
+        return out, C, N
+
+    def nearest(self, state, points: np.ndarray, margin: float = 0.0,
+                bodies: list[str] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Like :meth:`signed_distance`, with the closest surface point and outward normal of the
+        nearest bone, in the world frame.
+
+        Returns:
+            ``(d, nearest, c, n)``: (S, K) signed distances [m], (S, K) index into :attr:`bodies`
+            (-1 where no bone was queried), (S, K, 3) closest points [m] and (S, K, 3) unit normals
+            (NaN where no bone was queried).
+        """
+        return self._query(state, points, margin, bodies, closest=True)
 
     def signed_distance(self, state, points: np.ndarray, margin: float = 0.0,
                         bodies: list[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -145,10 +186,15 @@ class BoneSet:
             ``(d, nearest)``: (S, K) signed distances [m] (negative inside bone) and (S, K)
             index into :attr:`bodies` of the nearest bone (-1 where none was queried).
         """
+        return self._query(state, points, margin, bodies, closest=False)[:2]
+
+    def _query(self, state, points, margin, bodies, closest: bool):
         X = np.asarray(points, float)
         S, K = X.shape[:2]
         d = np.full((S, K), np.inf)
         near = np.full((S, K), -1, dtype=int)
+        cw = np.full((S, K, 3), np.nan) if closest else None
+        nw = np.full((S, K, 3), np.nan) if closest else None
         names = self.model.bodies
         for bi, body in enumerate(self.bodies):
             if bodies is not None and body not in bodies:
@@ -164,7 +210,10 @@ class BoneSet:
                 mask = np.all((local >= lo - margin) & (local <= hi + margin), axis=2)
             if not mask.any():
                 continue
-            s = self.body_signed_distance(body, local[mask])
+            if closest:
+                s, c, n = self.body_closest(body, local[mask])
+            else:
+                s = self.body_signed_distance(body, local[mask])
             cur = d[mask]
             better = s < cur
             cur[better] = s[better]
@@ -172,7 +221,15 @@ class BoneSet:
             nb = near[mask]
             nb[better] = bi
             near[mask] = nb
-        return d, near
+            if closest:
+                Rm = np.broadcast_to(R[:, None], (S, K, 3, 3))[mask]          # (M, 3, 3)
+                pm = np.broadcast_to(p[:, None], (S, K, 3))[mask]
+                cc, nn = cw[mask], nw[mask]
+                cc[better] = (pm + np.einsum("mij,mj->mi", Rm, c))[better]
+                nn[better] = np.einsum("mij,mj->mi", Rm, n)[better]
+                cw[mask] = cc
+                nw[mask] = nn
+        return d, near, cw, nw
 
 
 def capsule_distance(a0: np.ndarray, a1: np.ndarray, ra: float, b0: np.ndarray, b1: np.ndarray, rb: float) -> float:

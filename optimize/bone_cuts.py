@@ -1,0 +1,320 @@
+"""Bone-mesh clearance of one actuator's route as linear constraints, re-linearised each round.
+
+The bone meshes (:class:`pamkin.bones.BoneSet`, exact libigl distances) are not smooth enough for
+IPOPT as functions, so the optimiser uses them the way sequential convex collision methods do
+(e.g. TrajOpt): at the current route, every segment sample that comes near a bone at some
+*bone-check pose* gives one linear constraint — the sample stays on the outer side of the bone's
+tangent plane at its closest surface point, by ``SEGMENT_CLEARANCE`` — and every body-fixed
+attachment point gets a slab along its own bone's outward normal, ``POINT_MIN`` ≤ n·(x − c) ≤
+``POINT_MAX`` (outside the bone, within bracket distance). The constraints are elastic (a slack
+with an L1 penalty, so a round always has a solution) and the points move within a trust region;
+after each round the exact distances are measured again and the best round is kept.
+
+Every world position of a route point is affine in the decision variables (x = base + R_b ℓ), so a
+tangent-plane constraint at a pose is one row ``w·z + w0 ≥ 0`` of the decision vector z of
+:class:`optimize.problem.ActuatorProblem` (3 coordinates per route point, then l0 and t).
+
+Bone-check poses: random poses over every audited coordinate (their own random stream, never the
+audit's), the 1-D sweep of the primary coordinate, and the walking trial between its frames.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from pamkin.errors import RangeWarning
+from pamkin.paths import PathSet
+
+#: Centre line of every segment at least this far outside every bone at the bone-check poses [m]
+#: (the audit's limit is 2 mm *into* bone; the difference covers poses between the samples).
+SEGMENT_CLEARANCE = 0.001
+#: Attachment points: distance from their own bone along its normal [m] (audit: 0 .. 20 mm).
+POINT_MIN = 0.003
+POINT_MAX = 0.012
+#: Target distance of a point projected onto its bone before the first round [m].
+POINT_TARGET = 0.008
+#: Segment samples nearer than this to a bone give a constraint [m].
+ACTIVATION = 0.010
+#: Spacing of the samples along a segment [m] (at its longest).
+STEP = 0.010
+#: At most this many constraints per segment sample (its closest poses) and in all.
+PER_SAMPLE = 3
+MAX_CUTS = 320
+#: Random bone-check poses per actuator.
+N_RANDOM = 200
+#: Random stream of the bone-check poses (the audit draws from AUDIT_STREAM, training from OPTIMIZE_STREAM).
+BONE_STREAM = 0xA0D3
+
+
+@dataclass
+class Measure:
+    """Exact clearance of a route at the bone-check poses."""
+
+    segment_depth: np.ndarray          # (segments,) deepest penetration of each segment [m] (<= 0: clear)
+    segment_bone: list[str | None]     # the bone of the deepest point
+    point_distance: np.ndarray         # (points,) own-bone distance of fixed points [m] (NaN: moving / no mesh)
+
+    def violation(self) -> float:
+        """Σ segment penetration + Σ point distance outside [0, 20 mm] [m] (0: clear of bone)."""
+        seg = np.maximum(self.segment_depth, 0.0).sum()
+        d = self.point_distance[np.isfinite(self.point_distance)]
+        return float(seg + np.maximum(-d, 0).sum() + np.maximum(d - 0.020, 0).sum())
+
+    def summary(self, names: list[str]) -> dict:
+        segs = [f"{names[a]}-{names[a + 1]}" for a in range(len(names) - 1)]
+        return {
+            "max_segment_penetration_mm": round(1e3 * float(max(self.segment_depth.max(), 0.0)), 2),
+            "segments_into_bone": {s: {"depth_mm": round(1e3 * float(d), 2), "bone": b}
+                                   for s, d, b in zip(segs, self.segment_depth, self.segment_bone) if d > 0},
+            "point_distance_mm": {n: round(1e3 * float(d), 2) for n, d in zip(names, self.point_distance)
+                                  if np.isfinite(d)},
+        }
+
+
+class BoneCuts:
+    """Bone-check poses of one actuator and the linear clearance rows of its route.
+
+    Args:
+        pam: The seed PAM (route points; moving points are described by offsets, seed 0).
+        model: The human model (kinematics of the poses; same skeleton as the robot).
+        bones: The skeleton's :class:`pamkin.bones.BoneSet`.
+        q: (S, n_coordinates) bone-check poses.
+    """
+
+    def __init__(self, pam, model, bones, q: np.ndarray, n_right_only: int = 0) -> None:
+        self.pam, self.bones = pam, bones
+        # the first n_right_only poses move the right leg only (as the audit's random poses): there the
+        # left leg's bones, standing at their default, are not tested
+        self.n_right_only = int(n_right_only)
+        self.right_side = [b for b in bones.bodies if not b.endswith("_l")]
+        kin = model.kinematics
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RangeWarning)
+            self.state = kin.forward(q, warn_range=False)
+            X, _ = PathSet(kin, ["route"], [pam.points]).point_positions(self.state)
+        self.S = len(q)
+        self.n_points = len(pam.points)
+        bidx = [model.bodies.index(pt.body) for pt in pam.points]
+        self.R = self.state.body_R[:, bidx]                      # (S, P, 3, 3)
+        self.moving = [not hasattr(pt, "location") for pt in pam.points]
+        # base of every point: its body origin (fixed points) or its unshifted moving position
+        self.base = np.where(np.array(self.moving)[None, :, None], X, self.state.body_p[:, bidx])
+        self.has_mesh = [(not m) and bool(bones.meshes.get(pt.body)) for pt, m in zip(pam.points, self.moving)]
+
+    def world(self, loc: np.ndarray) -> np.ndarray:
+        """(S, P, 3) world positions for the point locations/offsets ``loc`` (P, 3)."""
+        return self.base + np.einsum("spij,pj->spi", self.R, loc)
+
+    def _samples(self, X: np.ndarray):
+        """Segment samples: (S, K, 3) positions, segment index (K,), parameter t (K,)."""
+        segs, ts = [], []
+        for a in range(self.n_points - 1):
+            length = float(np.max(np.linalg.norm(X[:, a + 1] - X[:, a], axis=1)))
+            t = np.linspace(0.0, 1.0, max(3, int(np.ceil(length / STEP)) + 1))
+            segs.append(np.full(len(t), a))
+            ts.append(t)
+        seg, t = np.concatenate(segs), np.concatenate(ts)
+        P = X[:, seg] + t[None, :, None] * (X[:, seg + 1] - X[:, seg])
+        return P, seg, t
+
+    def _nearest(self, P: np.ndarray):
+        from types import SimpleNamespace  # noqa: PLC0415
+
+        k = self.n_right_only
+        if k <= 0:
+            return self.bones.nearest(self.state, P, margin=ACTIVATION)
+        st = self.state
+        a = self.bones.nearest(SimpleNamespace(body_R=st.body_R[:k], body_p=st.body_p[:k]), P[:k],
+                               margin=ACTIVATION, bodies=self.right_side)
+        if k >= len(P):
+            return a
+        b = self.bones.nearest(SimpleNamespace(body_R=st.body_R[k:], body_p=st.body_p[k:]), P[k:], margin=ACTIVATION)
+        return tuple(np.concatenate([x, y]) for x, y in zip(a, b))
+
+    def measure(self, loc: np.ndarray, with_rows: bool = False):
+        """Exact clearance of the route with locations ``loc`` (P, 3); optionally also the rows."""
+        X = self.world(loc)
+        P, seg, t = self._samples(X)
+        d, near, c, n = self._nearest(P)
+        depth = np.full(self.n_points - 1, -np.inf)
+        bone = [None] * (self.n_points - 1)
+        dmin = d.min(axis=0)                                   # (K,)
+        for a in range(self.n_points - 1):
+            k = np.flatnonzero(seg == a)
+            j = k[np.argmin(dmin[k])]
+            depth[a] = -dmin[j] if np.isfinite(dmin[j]) else -ACTIVATION
+            if depth[a] > 0:
+                s_ = int(np.argmin(d[:, j]))
+                bone[a] = self.bones.bodies[near[s_, j]]
+        pd = np.full(self.n_points, np.nan)
+        cs, ns = {}, {}
+        for i, pt in enumerate(self.pam.points):
+            if self.has_mesh[i]:
+                di, ci, ni = self.bones.body_closest(pt.body, loc[i][None])
+                pd[i], cs[i], ns[i] = di[0], ci[0], ni[0]
+        m = Measure(depth, bone, pd)
+        if not with_rows:
+            return m
+        rows = self._rows(loc, d, c, n, seg, t, cs, ns)
+        return m, rows
+
+    def _rows(self, loc, d, c, n, seg, t, cs, ns):
+        nz = 3 * self.n_points + 2
+        W, w0 = [], []
+        # attachment points outside their bone (body frame): n·(x - c) >= POINT_MIN; within bracket
+        # distance: the ball |x - c| <= POINT_MAX of :meth:`balls`
+        for i in cs:
+            w = np.zeros(nz)
+            w[3 * i:3 * i + 3] = ns[i]
+            W.append(w)
+            w0.append(-(ns[i] @ cs[i]) - POINT_MIN)
+        # segment samples near a bone: the closest poses of each, the nearest first
+        S, K = d.shape
+        cand = np.argwhere(d < ACTIVATION)                     # (M, 2) of (pose, sample)
+        if len(cand):
+            order = np.argsort(d[cand[:, 0], cand[:, 1]], kind="stable")
+            used = np.zeros(K, dtype=int)
+            room = MAX_CUTS - len(W)
+            for s_, k in cand[order]:
+                if room <= 0:
+                    break
+                if used[k] >= PER_SAMPLE:
+                    continue
+                used[k] += 1
+                room -= 1
+                a, tt, nn = int(seg[k]), float(t[k]), n[s_, k]
+                w = np.zeros(nz)
+                w[3 * a:3 * a + 3] += (1 - tt) * (self.R[s_, a].T @ nn)
+                w[3 * a + 3:3 * a + 6] += tt * (self.R[s_, a + 1].T @ nn)
+                base = (1 - tt) * self.base[s_, a] + tt * self.base[s_, a + 1]
+                W.append(w)
+                w0.append(float(nn @ base - nn @ c[s_, k] - SEGMENT_CLEARANCE))
+        if not W:
+            return np.zeros((0, nz)), np.zeros(0)
+        return np.array(W), np.array(w0)
+
+    def balls(self, loc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per route point: centre (closest point of its own bone to ``loc``) and radius
+        ``POINT_MAX`` of the ball the point must stay in (a conservative bracket-distance bound:
+        the distance to the bone is at most the distance to that surface point); radius ``inf``
+        for moving points and bodies without a mesh."""
+        c = np.zeros((self.n_points, 3))
+        r = np.full(self.n_points, np.inf)
+        for i, pt in enumerate(self.pam.points):
+            if self.has_mesh[i]:
+                _, ci, _ = self.bones.body_closest(pt.body, loc[i][None])
+                c[i], r[i] = ci[0], POINT_MAX
+        return c, r
+
+    def project(self, loc: np.ndarray) -> np.ndarray:
+        """Fixed points outside [POINT_MIN, POINT_MAX] of their own bone moved along its normal to
+        ``POINT_TARGET`` (the start of the first round)."""
+        out = np.array(loc, float, copy=True)
+        for i, pt in enumerate(self.pam.points):
+            if not self.has_mesh[i]:
+                continue
+            d, c, n = self.bones.body_closest(pt.body, out[i][None])
+            if not POINT_MIN <= d[0] <= POINT_MAX:
+                out[i] = c[0] + POINT_TARGET * n[0]
+        return out
+
+
+def bone_check_poses(model, rom, pam, seed: int, n_random: int = N_RANDOM,
+                     gait: bool = True) -> tuple[np.ndarray, int]:
+    """Bone-check poses of one actuator: ``n_random`` random poses over every audited coordinate
+    (stream :data:`BONE_STREAM`), the primary coordinate's 1-D sweep (others 0) and, when the trial
+    is available, the walking trial between its frames.
+
+    Returns:
+        ``(q, n_right_only)``: the poses and how many of them (the first) move the right leg only.
+    """
+    from pamkin.audit import audit_coordinates  # noqa: PLC0415
+
+    from .samples import gait_training_poses  # noqa: PLC0415
+
+    rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(BONE_STREAM, int(pam.id))))
+    coords = [c for c in audit_coordinates(rom) if c in model.coordinates]
+    q = np.zeros((n_random, len(model.coordinates)))
+    for c, v in rom.from_unit(coords, rng.random((n_random, len(coords)))).items():
+        q[:, model.coordinates.index(c)] = v
+    q1, _ = model.grid([pam.primary_coordinate], 15, rom=rom, base={c: 0.0 for c in model.coordinates})
+    blocks = [q, q1]
+    if gait:
+        blocks.append(gait_training_poses(model))
+    return np.vstack(blocks), len(q) + len(q1)
+
+
+#: Trust region of the point coordinates [m]: start, largest, and the size below which the rounds stop.
+TRUST_START = 0.02
+TRUST_MAX = 0.03
+TRUST_MIN = 0.002
+#: Merit of a round: objective + MERIT_PENALTY · (exact violation [m]) (as the rows' penalty).
+MERIT_PENALTY = 3000.0
+
+
+def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None):
+    """Move a solved route clear of bone (sequential linearisation with a trust region).
+
+    The attachment points are first projected onto their bones; then each round linearises the
+    clearance at the current route (:meth:`BoneCuts.measure`), solves the problem with these elastic
+    rows within the trust region, and measures the exact distances of the result. A round that
+    lowers the merit (objective + penalty × exact violation) is accepted and the region grows;
+    otherwise the region halves and the round is repeated from the same route.
+
+    Args:
+        prob: The :class:`optimize.problem.ActuatorProblem` that gave ``sol``.
+        sol: Its solution (feasible for the problem's own constraints).
+        cuts: The actuator's :class:`BoneCuts`.
+        rounds: Largest number of solves.
+        log: Optional list receiving one line per round.
+
+    Returns:
+        ``(solution, measure, rounds_info)``: the best accepted round — fewest bone violations
+        first, then the lowest objective — among rounds feasible for the problem's own constraints
+        (the input solution when none is), and its exact :class:`Measure`.
+    """
+    npt = cuts.n_points
+    m0 = cuts.measure(np.array(sol.points))
+    best, best_m = sol, m0
+    best_key = (round(m0.violation(), 5), sol.objective)
+    info = [{"round": 0, "violation_mm": round(1e3 * m0.violation(), 3), "objective": float(sol.objective)}]
+    z = sol.z.copy()
+    z[:3 * npt] = cuts.project(np.array(sol.points)).ravel()
+    merit = np.inf                   # the projected start has no solved objective: accept the first round
+    rho = TRUST_START
+    for r in range(rounds):
+        _, (W, w0) = cuts.measure(z[:3 * npt].reshape(npt, 3), with_rows=True)
+        lbx, ubx = prob.lbx.copy(), prob.ubx.copy()
+        zc = z[:3 * npt]
+        lbx[:3 * npt] = np.maximum(np.minimum(lbx[:3 * npt], zc), zc - rho)
+        ubx[:3 * npt] = np.minimum(np.maximum(ubx[:3 * npt], zc), zc + rho)
+        z0 = np.clip(z, lbx, ubx)
+        centres, radii = cuts.balls(zc.reshape(npt, 3))
+        s, slack = prob.solve_with_rows(z0, sol.n_parallel, W, w0, lbx, ubx, centres, radii)
+        ms = cuts.measure(np.array(s.points))
+        m_new = s.objective + MERIT_PENALTY * ms.violation()
+        accept = bool(s.success) and m_new < merit
+        info.append({"round": r + 1, "rows": int(len(W)), "trust_mm": round(1e3 * rho, 2), "status": s.status,
+                     "feasible": bool(s.success), "accepted": accept, "max_slack_mm": round(1e3 * slack, 3),
+                     "violation_mm": round(1e3 * ms.violation(), 3), "objective": float(s.objective)})
+        if log is not None:
+            log.append(f"  bone round {r + 1}: {len(W)} rows, trust {1e3 * rho:.1f} mm, {s.status}, "
+                       f"violation {1e3 * ms.violation():.2f} mm, objective {s.objective:.4g}"
+                       f"{'' if accept else ' (rejected)'}")
+        if accept:
+            key = (round(ms.violation(), 5), s.objective)
+            if not best.success or best is sol or key < best_key:
+                best, best_m, best_key = s, ms, key
+            step = float(np.max(np.abs(s.z[:3 * npt] - zc)))
+            z, merit = s.z.copy(), m_new
+            rho = min(TRUST_MAX, 1.5 * rho) if step > 0.5 * rho else rho
+            if ms.violation() == 0.0 and step < 1e-4:
+                break
+        else:
+            rho *= 0.5
+            if rho < TRUST_MIN:
+                break
+    return best, best_m, info

@@ -1,0 +1,117 @@
+"""Bone-mesh clearance in the optimiser (optimize.bone_cuts): closest points and normals of the bone
+meshes, and the sequentially linearised constraints that keep a toy route out of a toy mesh."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+import pamkin
+from pamkin.bones import BoneSet
+from pamkin.design import Design, Pam
+from pamkin.optimize.bone_cuts import POINT_MAX, POINT_MIN, BoneCuts, bone_stage
+from pamkin.optimize.config import RunConfig
+from pamkin.optimize.problem import ActuatorProblem
+from pamkin.optimize.samples import actuator_data
+from pamkin.osim import PathPoint
+from pamkin.robot import PamRobot
+from pamkin.rom import RangeOfMotion
+
+DATA = Path(__file__).parent / "data"
+
+
+def _box(lo, hi):
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    m = trimesh.creation.box(extents=hi - lo)
+    m.apply_translation((lo + hi) / 2)
+    return m.vertices, m.faces
+
+
+def test_closest_point_and_normal_are_the_distance_gradient():
+    """Outward normals equal central differences of the signed distance (inside and outside a closed
+    mesh); closest points lie at distance |d| along the normal."""
+    model = pamkin.load_osim(DATA / "two_body.osim")
+    s = trimesh.creation.icosphere(subdivisions=2, radius=0.05)
+    bones = BoneSet.from_meshes(model, {"base": [(s.vertices, s.faces)]})
+    rng = np.random.default_rng(1)
+    P = rng.normal(size=(40, 3))
+    P *= (rng.uniform(0.01, 0.09, 40) / np.linalg.norm(P, axis=1))[:, None]   # inside and outside
+    P = P[np.abs(np.linalg.norm(P, axis=1) - 0.048) > 0.006]                    # off the surface
+    d, c, n = bones.body_closest("base", P)
+    assert (d < 0).any() and (d > 0).any()
+    h = 1e-6
+    grad = np.stack([(bones.body_signed_distance("base", P + h * e) - bones.body_signed_distance("base", P - h * e))
+                     / (2 * h) for e in np.eye(3)], axis=1)
+    np.testing.assert_allclose(n, grad, atol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-12)
+    np.testing.assert_allclose(P, c + d[:, None] * n, atol=1e-12)
+
+
+def test_mesh_rows_keep_a_toy_route_out_of_a_toy_mesh():
+    """Two bodies, one pin joint; each attachment point stands 30 mm off its bone (a block), and the
+    straight route passes through a bump of the base's bone. After the bone-mesh rounds,
+    measured independently on a dense grid of the joint angle: the route clears the meshes (the
+    segment's centre line at most 2 mm into bone, the audit's limit; the rows ask for +1 mm at the
+    check poses) and both points sit outside their bones within 20 mm; the fit stays close."""
+    model = pamkin.load_osim(DATA / "two_body.osim")
+    rom = RangeOfMotion({"angle": (-0.2, 0.2)})
+    origin_block = _box((0.0, -0.08, -0.02), (0.02, -0.02, 0.02))
+    bump = _box((0.038, -0.22, -0.015), (0.06, -0.18, 0.015))
+    insertion_block = _box((0.0, -0.15, -0.02), (0.02, -0.09, 0.02))
+    bones = BoneSet.from_meshes(model, {"base": [origin_block, bump], "arm": [insertion_block]})
+    route = (PathPoint("o", "base", (0.05, -0.05, 0.0)), PathPoint("i", "arm", (0.05, -0.12, 0.0)))
+    seed = Pam(1, "toy", (), "angle", (), 10, 1, 0.25, 0.0, route)   # the target: its own torque
+    seed_robot = PamRobot(Design("seed", (seed,)), model, sides=("r",))
+
+    def target(q):
+        return seed_robot.evaluate(q).torques[:, 0, :]
+
+    cfg = RunConfig(regularization=0.0, bone_clearance=False, n_primary=21, bone_mesh=True,
+                    regions={"1": [0.06, 0.06, 0.0]})
+    data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
+    seed_points = [np.array(p.location) for p in seed.points]
+    regions = [np.array(cfg.region(1, p.name)) for p in seed.points]
+    prob = ActuatorProblem(data, cfg, 10, seed_points, regions)
+    sol = prob.solve(prob.initial_guess(seed_points, None, None), 1)
+    assert sol.success, sol.status
+    q_check, _ = model.grid(["angle"], 11, rom=rom)
+    cuts = BoneCuts(seed, model, bones, q_check)
+    assert cuts.measure(np.array(seed_points)).segment_depth[0] > 0.005     # the seed route hits the bump
+    before = cuts.measure(np.array(sol.points))
+    assert before.violation() > 0.01                        # the fitted route ignores the meshes
+    best, measure, info = bone_stage(prob, sol, cuts, rounds=12)
+    assert best.success and best is not sol, info
+
+    # independent check: dense angles, 1 mm steps along the segment, both bodies' meshes
+    fitted = Pam(1, "fit", (), "angle", (), 10, 1, best.rest_length, best.tendon_length,
+                 tuple(PathPoint(p.name, p.body, tuple(loc)) for p, loc in zip(seed.points, best.points)))
+    robot = PamRobot(Design("fit", (fitted,)), model, sides=("r",))
+    q, _ = model.grid(["angle"], 201, rom=rom)
+    st = model.kinematics.forward(q)
+    X, _ = robot.paths.point_positions(st)
+    t = np.linspace(0, 1, 400)
+    P = X[:, :1] + t[None, :, None] * (X[:, 1:2] - X[:, :1])
+    d, _ = bones.signed_distance(st, P, margin=None)
+    print(f"deepest point of the segment: {-d.min() * 1e3:.2f} mm into bone (before: "
+          f"{before.segment_depth.max() * 1e3:.1f} mm); rounds: {[(r['violation_mm'], round(r['objective'], 4)) for r in info]}")
+    assert d.min() >= -0.002
+    own = [bones.body_signed_distance(p.body, np.array([loc]))[0] for p, loc in zip(seed.points, best.points)]
+    assert all(POINT_MIN - 1e-4 <= x <= POINT_MAX + 1e-4 for x in own), own
+    assert measure.violation() == 0.0
+    assert best.objective <= 1.5 * sol.objective + 1e-3     # the fit stays close to the unconstrained one
+
+
+def test_bone_mesh_config_keys(tmp_path):
+    from pamkin.errors import DataFileError
+    from pamkin.optimize.config import load_config
+
+    f = tmp_path / "c.toml"
+    f.write_text("[limits]\nbone_mesh = true\nbone_rounds = 4\n")
+    cfg = load_config(f)
+    assert cfg.bone_mesh and cfg.bone_rounds == 4
+    f.write_text("[limits]\nbone_rounds = 0\n")
+    with pytest.raises(DataFileError, match="bone_rounds"):
+        load_config(f)
