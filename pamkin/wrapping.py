@@ -116,6 +116,15 @@ def _cross(a, b):
 
 
 @njit(**_OPTS)
+def _vec(x, y, z):
+    out = np.empty(3)
+    out[0] = x
+    out[1] = y
+    out[2] = z
+    return out
+
+
+@njit(**_OPTS)
 def _norm(a):
     return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
 
@@ -595,6 +604,36 @@ def _tangent_residuals(r1, d1, p1, m, a, vs, vs4):
 
 
 @njit(**_OPTS)
+def _inv4(A):
+    """Inverse of a 4×4 matrix (Gauss-Jordan elimination with partial pivoting; NaN when singular)."""
+    M = A.copy()
+    inv = np.eye(4)
+    for c in range(4):
+        piv = c
+        for r in range(c + 1, 4):
+            if abs(M[r, c]) > abs(M[piv, c]):
+                piv = r
+        if M[piv, c] == 0.0:
+            return np.full((4, 4), np.nan)
+        if piv != c:
+            for k in range(4):
+                M[c, k], M[piv, k] = M[piv, k], M[c, k]
+                inv[c, k], inv[piv, k] = inv[piv, k], inv[c, k]
+        d = M[c, c]
+        for k in range(4):
+            M[c, k] /= d
+            inv[c, k] /= d
+        for r in range(4):
+            if r != c:
+                f = M[r, c]
+                if f != 0.0:
+                    for k in range(4):
+                        M[r, k] -= f * M[c, k]
+                        inv[r, k] -= f * inv[c, k]
+    return inv
+
+
+@njit(**_OPTS)
 def _tangent_point(p1e, r1, p1, m, a, vs, vs4):
     """WrapEllipsoid::calcTangentPoint (normalised coordinates): the adjusted r1."""
     if abs(p1e) < 0.0001:
@@ -639,7 +678,7 @@ def _tangent_point(p1e, r1, p1, m, a, vs, vs4):
         while ssq >= ssqo and nit2 < 1000:
             for i in range(4):
                 dedth2[i, i] = diag[i] * (1.0 + alpha)
-            inv = np.linalg.inv(dedth2)
+            inv = _inv4(dedth2)
             for i in range(4):
                 s = 0.0
                 for j in range(4):
@@ -698,27 +737,28 @@ def _ellipsoid_distance(r1, r2, m, a, vs, vs4, far_side, factor):
     vsy = _cross(vsz, ar1)
     f2 = (a0 - m) / a
     cc = _dot(f2, f2) - 1.0
-    prev = r1
+    px, py, pz = r1[0], r1[1], r1[2]
     total = 0.0
     first = r2
-    last = r1
-    for i in range(nseg - 1):
+    for i in range(nseg - 1):     # scalar code: no temporary arrays in this loop
         phi = (i + 1) * dphi
         c, s = math.cos(phi), math.sin(phi)
-        r = np.empty(3)
-        for j in range(3):
-            r[j] = ar1[j] * c + vsy[j] * s + vsz[j] * 0.0
-        f1 = r / a
-        aa = _dot(f1, f1)
-        bb = 2.0 * _dot(f1, f2)
+        rx = ar1[0] * c + vsy[0] * s + vsz[0] * 0.0
+        ry = ar1[1] * c + vsy[1] * s + vsz[1] * 0.0
+        rz = ar1[2] * c + vsy[2] * s + vsz[2] * 0.0
+        fx, fy, fz = rx / a[0], ry / a[1], rz / a[2]
+        aa = fx * fx + fy * fy + fz * fz
+        bb = 2.0 * (fx * f2[0] + fy * f2[1] + fz * f2[2])
         mu3 = (-bb + math.sqrt(bb * bb - 4.0 * aa * cc)) / (2.0 * aa)
-        pt = a0 + mu3 * r
+        qx, qy, qz = a0[0] + mu3 * rx, a0[1] + mu3 * ry, a0[2] + mu3 * rz
         if i == 0:
-            first = pt
-        last = pt
-        total += _norm(pt - prev)
-        prev = pt
-    total += _norm(r2 - prev)
+            first = _vec(qx, qy, qz)
+        dx, dy, dz = qx - px, qy - py, qz - pz
+        total += math.sqrt(dx * dx + dy * dy + dz * dz)
+        px, py, pz = qx, qy, qz
+    dx, dy, dz = r2[0] - px, r2[1] - py, r2[2] - pz
+    total += math.sqrt(dx * dx + dy * dy + dz * dz)
+    last = r1 if nseg < 2 else _vec(px, py, pz)
     return total, first, last, nseg + 1
 
 
