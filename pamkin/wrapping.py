@@ -169,89 +169,131 @@ def _det3(r0, r1, r2):
             + r0[2] * (r1[0] * r2[1] - r1[1] * r2[0]))
 
 
+# ----------------------------------------------------------------------------- cylinder
+# The cylinder is the most used wrap object: its code works on (x, y, z) tuples (no heap allocation).
+_T0 = (0.0, 0.0, 0.0)
+_DN = (0.0, 0.0, 1.0)
+_P0 = (0.0, 0.0, -1.0)
+_TNAN = (np.nan, np.nan, np.nan)
+
+
 @njit(**_OPTS)
-def _intersect_lines(p1, p2, p3, p4):
+def _t_add(a, b):
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+@njit(**_OPTS)
+def _t_sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+@njit(**_OPTS)
+def _t_mul(s, a):
+    return (s * a[0], s * a[1], s * a[2])
+
+
+@njit(**_OPTS)
+def _t_cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@njit(**_OPTS)
+def _t_unit(a):
+    mag = _norm(a)
+    if mag >= _EPS:
+        f = 1.0 / mag
+        return (a[0] * f, a[1] * f, a[2] * f)
+    return _T0
+
+
+@njit(**_OPTS)
+def _t_closest(pt, line_pt, line):
+    """WrapMath::GetClosestPointOnLineToPoint on tuples: (closest point, t)."""
+    v1 = _t_sub(pt, line_pt)
+    mag = _norm(v1)
+    v1 = _t_unit(v1)
+    mag2 = _norm(line)
+    v2 = _t_unit(line)
+    t = _dot(v1, v2) * mag
+    return _t_add(line_pt, _t_mul(t, v2)), t / mag2
+
+
+@njit(**_OPTS)
+def _t_intersect_lines(p1, p2, p3, p4):
     """WrapMath::IntersectLines: (ok, pInt1, s, pInt2, t); NaN points when the lines are parallel."""
-    vec1 = p2 - p1
+    vec1 = _t_sub(p2, p1)
     mag1 = _norm(vec1)
-    vec1 = _unit(vec1)
-    vec2 = p4 - p3
+    vec1 = _t_unit(vec1)
+    vec2 = _t_sub(p4, p3)
     mag2 = _norm(vec2)
-    vec2 = _unit(vec2)
-    cp = _cross(vec1, vec2)
+    vec2 = _t_unit(vec2)
+    cp = _t_cross(vec1, vec2)
     denom = _dot(cp, cp)
-    nan3 = np.full(3, np.nan)
     if abs(denom) <= _ROUNDOFF:
-        return False, nan3, np.nan, nan3.copy(), np.nan
-    row0 = p3 - p1
+        return False, _TNAN, np.nan, _TNAN, np.nan
+    row0 = _t_sub(p3, p1)
     t = _det3(row0, vec1, cp) / denom
-    pint2 = p3 + t * vec2
+    pint2 = _t_add(p3, _t_mul(t, vec2))
     s = _det3(row0, vec2, cp) / denom
-    pint1 = p1 + s * vec1
+    pint1 = _t_add(p1, _t_mul(s, vec1))
     return True, pint1, s / mag1, pint2, t / mag2
 
 
 @njit(**_OPTS)
-def _intersect_seg_plane(pt1, pt2, plane, d):
+def _t_seg_plane(pt1, pt2, plane, d):
     """WrapMath::IntersectLineSegPlane: (ok, point)."""
-    vec = pt2 - pt1
+    vec = _t_sub(pt2, pt1)
     dotprod = _dot(vec, plane)
     if abs(dotprod) < 1e-5:
         return False, pt1
     t = (-d - plane[0] * pt1[0] - plane[1] * pt1[1] - plane[2] * pt1[2]) / dotprod
     if t < -1e-5 or t > 1.0 + 1e-5:
         return False, pt1
-    return True, pt1 + t * vec
+    return True, _t_add(pt1, _t_mul(t, vec))
 
 
 @njit(**_OPTS)
-def _dist2_point_line(point, line_pt, line):
-    v = line_pt - point
-    n = line / _norm(line)
-    w = v - _dot(v, n) * n
+def _t_dist2_line(point, line_pt, line):
+    v = _t_sub(line_pt, point)
+    nl = _norm(line)
+    n = (line[0] / nl, line[1] / nl, line[2] / nl)
+    w = _t_sub(v, _t_mul(_dot(v, n), n))
     return _dot(w, w)
 
 
-# ----------------------------------------------------------------------------- cylinder
 @njit(**_OPTS)
-def _rot_z(v, angle):
+def _t_rot_z(v, angle):
     c, s = math.cos(angle), math.sin(angle)
-    out = np.empty(3)
-    out[0] = c * v[0] - s * v[1]
-    out[1] = s * v[0] + c * v[1]
-    out[2] = v[2]
-    return out
+    return (c * v[0] - s * v[1], s * v[0] + c * v[1], v[2])
 
 
 @njit(**_OPTS)
-def _adjust_tangent_point(pt1, dn, r1, w1):
-    """WrapCylinder::_adjust_tangent_point: (adjusted?, new r1)."""
-    pr = _unit(r1 - pt1)
-    rw = _unit(w1 - r1)
-    alpha = _acos(_dot(pr, dn))
-    omega = _acos(_dot(rw, dn))
+def _adjust_tangent_point(pt1, r1, w1):
+    """WrapCylinder::_adjust_tangent_point (axis z): (adjusted?, new r1)."""
+    pr = _t_unit(_t_sub(r1, pt1))
+    rw = _t_unit(_t_sub(w1, r1))
+    alpha = _acos(_dot(pr, _DN))
+    omega = _acos(_dot(rw, _DN))
     if abs(alpha - omega) > 0.1 * math.pi / 180.0:
-        p1a, _ = _closest_on_line(pt1, r1, dn)
-        w1a, _ = _closest_on_line(w1, r1, dn)
-        _ok, _a, _s, p1aw1a, _t = _intersect_lines(pt1, w1, p1a, w1a)
-        return True, r1 + 1.5 * (p1aw1a - r1)
+        p1a, _ = _t_closest(pt1, r1, _DN)
+        w1a, _ = _t_closest(w1, r1, _DN)
+        _ok, _a, _s, p1aw1a, _t = _t_intersect_lines(pt1, w1, p1a, w1a)
+        return True, _t_add(r1, _t_mul(1.5, _t_sub(p1aw1a, r1)))
     return False, r1
 
 
 @njit(**_OPTS)
 def _spiral(p1, p2, far_side, r1, r2, radius, single):
     """WrapCylinder::_make_spiral_path: (r1, r2, wrap length)."""
-    dn = np.array([0.0, 0.0, 1.0])
-    p0 = np.array([0.0, 0.0, -1.0])
     sense = -1.0 if far_side else 1.0
     iterations = 0
     while True:
-        r1a, _ = _closest_on_line(r1, p0, dn)
-        r2a, _ = _closest_on_line(r2, p0, dn)
-        axial = _dot(r2a - r1a, dn)
-        uu = r1 - r1a
-        vv = r2 - r2a
-        theta = math.atan2(_dot(_cross(uu, vv), dn), _dot(uu, vv))
+        r1a, _ = _t_closest(r1, _P0, _DN)
+        r2a, _ = _t_closest(r2, _P0, _DN)
+        axial = _dot(_t_sub(r2a, r1a), _DN)
+        uu = _t_sub(r1, r1a)
+        vv = _t_sub(r2, r2a)
+        theta = math.atan2(_dot(_t_cross(uu, vv), _DN), _dot(uu, vv))
         if far_side:
             theta = 2.0 * math.pi - theta
         x = radius * theta
@@ -262,10 +304,10 @@ def _spiral(p1, p2, far_side, r1, r2, radius, single):
         restart = False
         if n > 1 and iterations < 100:
             t = 1.0 / n
-            wp = _rot_z(r1, sense * t * theta) + dn * (t * axial)
-            adj1, r1n = _adjust_tangent_point(p1, dn, r1, wp)
-            tw = _rot_z(r1n, sense * (1.0 - t) * theta) + dn * ((1.0 - t) * axial)
-            adj2, r2n = _adjust_tangent_point(p2, dn, r2, tw)
+            wp = _t_add(_t_rot_z(r1, sense * t * theta), _t_mul(t * axial, _DN))
+            adj1, r1n = _adjust_tangent_point(p1, r1, wp)
+            tw = _t_add(_t_rot_z(r1n, sense * (1.0 - t) * theta), _t_mul((1.0 - t) * axial, _DN))
+            adj2, r2n = _adjust_tangent_point(p2, r2, tw)
             r1, r2 = r1n, r2n
             if adj1 or adj2:
                 iterations += 1
@@ -275,50 +317,56 @@ def _spiral(p1, p2, far_side, r1, r2, radius, single):
 
 
 @njit(**_OPTS)
-def wrap_cylinder(p1, p2, radius, length, wrap_axis, wrap_sign, single):
+def wrap_cylinder(point1, point2, radius, length, wrap_axis, wrap_sign, single):
     """WrapCylinder::wrapLine in the cylinder frame: (code, r1, r2, wrap length)."""
-    dn = np.array([0.0, 0.0, 1.0])
-    p0 = np.array([0.0, 0.0, -1.0])
+    p1 = (point1[0], point1[1], point1[2])
+    p2 = (point2[0], point2[1], point2[2])
+    code, r1, r2, wl = _cylinder(p1, p2, radius, length, wrap_axis, wrap_sign, single)
+    return code, _vec(r1[0], r1[1], r1[2]), _vec(r2[0], r2[1], r2[2]), wl
+
+
+@njit(**_OPTS)
+def _cylinder(p1, p2, radius, length, wrap_axis, wrap_sign, single):
+    dn, p0 = _DN, _P0
     r2sq = radius * radius
-    nan3 = np.full(3, np.nan)
     code = WRAPPED
     constrained = wrap_sign != 0
     far_side = False
     long_wrap = False
-    if _dist2_point_line(p1, p0, dn) < r2sq or _dist2_point_line(p2, p0, dn) < r2sq:
-        return INSIDE_RADIUS, nan3, nan3, 0.0
-    cyl_start = np.array([0.0, 0.0, -0.5 * length])
-    cyl_end = np.array([0.0, 0.0, 0.5 * length])
-    _ok, near12, t12, near00, _t00 = _intersect_lines(p1, p2, cyl_start, cyl_end)
-    d12 = near12 - near00
+    if _t_dist2_line(p1, p0, dn) < r2sq or _t_dist2_line(p2, p0, dn) < r2sq:
+        return INSIDE_RADIUS, _TNAN, _TNAN, 0.0
+    cyl_start = (0.0, 0.0, -0.5 * length)
+    cyl_end = (0.0, 0.0, 0.5 * length)
+    _ok, near12, t12, near00, _t00 = _t_intersect_lines(p1, p2, cyl_start, cyl_end)
+    d12 = _t_sub(near12, near00)
     pierces = _dot(d12, d12) < r2sq and t12 > 0.0 and t12 < 1.0
     if not constrained:
         if pierces:
             code = MANDATORY_WRAP
         else:
-            return NO_WRAP, nan3, nan3, 0.0
-    p11, _ = _closest_on_line(p1, p0, dn)
-    p22, _ = _closest_on_line(p2, p0, dn)
-    vv = p1 - p11
+            return NO_WRAP, _TNAN, _TNAN, 0.0
+    p11, _ = _t_closest(p1, p0, dn)
+    p22, _ = _t_closest(p2, p0, dn)
+    vv = _t_sub(p1, p11)
     p11_dist = _norm(vv)
-    vv = _unit(vv)
+    vv = _t_unit(vv)
     sin_t = radius / p11_dist
     dist = radius * sin_t
-    pp = p11 + dist * vv
+    pp = _t_add(p11, _t_mul(dist, vv))
     dist = math.sqrt(r2sq - dist * dist)
-    uu = _cross(dn, vv)
-    r1a = pp + dist * uu
-    r1b = pp - dist * uu
-    vv = p2 - p22
+    uu = _t_cross(dn, vv)
+    r1a = _t_add(pp, _t_mul(dist, uu))
+    r1b = _t_sub(pp, _t_mul(dist, uu))
+    vv = _t_sub(p2, p22)
     p22_dist = _norm(vv)
-    vv = _unit(vv)
+    vv = _t_unit(vv)
     sin_t = radius / p22_dist
     dist = radius * sin_t
-    pp = p22 + dist * vv
+    pp = _t_add(p22, _t_mul(dist, vv))
     dist = math.sqrt(r2sq - dist * dist)
-    uu = _cross(dn, vv)
-    r2a = pp + dist * uu
-    r2b = pp - dist * uu
+    uu = _t_cross(dn, vv)
+    r2a = _t_add(pp, _t_mul(dist, uu))
+    r2b = _t_sub(pp, _t_mul(dist, uu))
     ax, sg = wrap_axis, wrap_sign
     if constrained:
         if _dsign(p1[ax]) == sg or _dsign(p2[ax]) == sg:
@@ -327,8 +375,8 @@ def wrap_cylinder(p1, p2, radius, length, wrap_axis, wrap_sign, single):
             elif _dsign(p1[ax]) != _dsign(p2[ax]) and _dsign(near12[ax]) != sg:
                 code = WRAPPED
             else:
-                return NO_WRAP, nan3, nan3, 0.0
-        r1am, r1bm, r2am, r2bm = r1a - p11, r1b - p11, r2a - p22, r2b - p22
+                return NO_WRAP, _TNAN, _TNAN, 0.0
+        r1am, r1bm, r2am, r2bm = _t_sub(r1a, p11), _t_sub(r1b, p11), _t_sub(r2a, p22), _t_sub(r2b, p22)
         alpha = _acos(_dot(r1am, r2bm) / (_norm(r1am) * _norm(r2bm)))
         beta = _acos(_dot(r1bm, r2am) / (_norm(r1bm) * _norm(r2am)))
         s1a, s1b = _dsign(r1a[ax]) == sg, _dsign(r1b[ax]) == sg
@@ -341,7 +389,7 @@ def wrap_cylinder(p1, p2, radius, length, wrap_axis, wrap_sign, single):
             r1, r2, far_side = r1a, r2b, alpha > beta
         elif not s1a and s1b:
             r1, r2, far_side = r1b, r2a, not (alpha > beta)
-        else:
+        else:   # none of r1a, r1b on the active side: r2a, r2b decide
             if _dsign(r2a[ax]) == sg:
                 r1, r2, far_side = r1b, r2a, not (alpha > beta)
             elif _dsign(r2b[ax]) == sg:
@@ -350,13 +398,13 @@ def wrap_cylinder(p1, p2, radius, length, wrap_axis, wrap_sign, single):
                 r1, r2, far_side = r1a, r2b, True
             else:
                 r1, r2, far_side = r1b, r2a, True
-        sum_musc = (r1 - p1) + (r2 - p2)
-        sum_r = (r1 - p11) + (r2 - p22)
+        sum_musc = _t_add(_t_sub(r1, p1), _t_sub(r2, p2))
+        sum_r = _t_add(_t_sub(r1, p11), _t_sub(r2, p22))
         if _dot(sum_r, sum_musc) < 0.0:
             long_wrap = True
     else:
-        r1am, r1bm = _unit(r1a - p11), _unit(r1b - p11)
-        r2am, r2bm = _unit(r2a - p22), _unit(r2b - p22)
+        r1am, r1bm = _t_unit(_t_sub(r1a, p11)), _t_unit(_t_sub(r1b, p11))
+        r2am, r2bm = _t_unit(_t_sub(r2a, p22)), _t_unit(_t_sub(r2b, p22))
         dot1, dot2 = _dot(r1am, r2am), _dot(r1am, r2bm)
         dot3, dot4 = _dot(r1bm, r2am), _dot(r1bm, r2bm)
         if dot1 > dot2 and dot1 > dot3 and dot1 > dot4:
@@ -369,43 +417,45 @@ def wrap_cylinder(p1, p2, radius, length, wrap_axis, wrap_sign, single):
             r1, r2 = r1b, r2b
     # apex of the cylinder edge between the tangent lines
     t = p11_dist / (p11_dist + p22_dist)
-    mpt = p1 + t * (p2 - p1)
-    axispt, _ = _closest_on_line(mpt, p0, dn)
-    l1 = _unit(p1 - axispt)
-    l2 = _unit(p2 - axispt)
-    pn = _cross(l1, l2)
-    pn = pn / _norm(pn)            # UnitVec3
-    pn = _unit(pn)
-    vert1 = _unit(_cross(dn, pn))
-    vert2 = _unit(_cross(pn, dn))
-    apex1 = axispt + radius * vert1
-    apex2 = axispt + radius * vert2
-    e1, e2 = mpt - apex1, mpt - apex2
+    mpt = _t_add(p1, _t_mul(t, _t_sub(p2, p1)))
+    axispt, _ = _t_closest(mpt, p0, dn)
+    l1 = _t_unit(_t_sub(p1, axispt))
+    l2 = _t_unit(_t_sub(p2, axispt))
+    pn = _t_cross(l1, l2)
+    npn = _norm(pn)
+    pn = (pn[0] / npn, pn[1] / npn, pn[2] / npn)       # UnitVec3
+    pn = _t_unit(pn)
+    vert1 = _t_unit(_t_cross(dn, pn))
+    vert2 = _t_unit(_t_cross(pn, dn))
+    apex1 = _t_add(axispt, _t_mul(radius, vert1))
+    apex2 = _t_add(axispt, _t_mul(radius, vert2))
+    e1, e2 = _t_sub(mpt, apex1), _t_sub(mpt, apex2)
     dist1, dist2 = _dot(e1, e1), _dot(e2, e2)
     if far_side:
         apex = apex2 if dist1 < dist2 else apex1
     else:
         apex = apex1 if dist1 < dist2 else apex2
-    uu = _unit(p1 - apex)
-    vv = _unit(p2 - apex)
-    pn = _cross(uu, vv)
-    pn = pn / _norm(pn)
+    uu = _t_unit(_t_sub(p1, apex))
+    vv = _t_unit(_t_sub(p2, apex))
+    pn = _t_cross(uu, vv)
+    npn = _norm(pn)
+    pn = (pn[0] / npn, pn[1] / npn, pn[2] / npn)
     d = -p1[0] * pn[0] - p1[1] * pn[1] - p1[2] * pn[2]
-    ok1, r1p = _intersect_seg_plane(r1 - 10.0 * dn, r1 + 10.0 * dn, pn, d)
-    ok2, r2p = _intersect_seg_plane(r2 - 10.0 * dn, r2 + 10.0 * dn, pn, d)
+    ok1, r1p = _t_seg_plane(_t_sub(r1, _t_mul(10.0, dn)), _t_add(r1, _t_mul(10.0, dn)), pn, d)
+    ok2, r2p = _t_seg_plane(_t_sub(r2, _t_mul(10.0, dn)), _t_add(r2, _t_mul(10.0, dn)), pn, d)
     if ok1:
-        c, _ = _closest_on_line(r1p, p11, p22)      # OpenSim passes p22 as the line's direction
-        e, f = c - p22, p11 - p22
+        c, _ = _t_closest(r1p, p11, p22)      # OpenSim passes p22 as the line's direction
+        e, f = _t_sub(c, p22), _t_sub(p11, p22)
         if _dot(e, e) < _dot(f, f):
             r1 = r1p
     if ok2:
-        c, _ = _closest_on_line(r2p, p11, p22)
-        e, f = c - p11, p22 - p11
+        c, _ = _t_closest(r2p, p11, p22)
+        e, f = _t_sub(c, p11), _t_sub(p22, p11)
         if _dot(e, e) < _dot(f, f):
             r2 = r2p
     half = length / 2.0
     if (r1[2] < -half or r1[2] > half) and (r2[2] < -half or r2[2] > half):
-        return NO_WRAP, nan3, nan3, 0.0
+        return NO_WRAP, _TNAN, _TNAN, 0.0
     r1, r2, wl = _spiral(p1, p2, long_wrap, r1, r2, radius, single)
     return code, r1, r2, wl
 
