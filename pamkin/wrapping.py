@@ -35,7 +35,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 
 #: WrapAction codes of OpenSim's WrapObject.
 NO_WRAP, INSIDE_RADIUS, WRAPPED, MANDATORY_WRAP = 0, 1, 2, 3
@@ -946,6 +946,33 @@ def wrap_ellipsoid(point1, point2, dims, method, wrap_axis, wrap_sign):
     return MANDATORY_WRAP, r1 / factor, r2 / factor, wl / factor
 
 
+# ----------------------------------------------------------------------------- frames
+@njit(**_OPTS)
+def _to_local(x, R, p):
+    """R^T (x - p): a point in a frame with orientation R and origin p."""
+    d0, d1, d2 = x[0] - p[0], x[1] - p[1], x[2] - p[2]
+    return _vec(d0 * R[0, 0] + d1 * R[1, 0] + d2 * R[2, 0], d0 * R[0, 1] + d1 * R[1, 1] + d2 * R[2, 1],
+                d0 * R[0, 2] + d1 * R[1, 2] + d2 * R[2, 2])
+
+
+@njit(**_OPTS)
+def _to_world(r, R, p):
+    """p + R r."""
+    return _vec(p[0] + (R[0, 0] * r[0] + R[0, 1] * r[1] + R[0, 2] * r[2]),
+                p[1] + (R[1, 0] * r[0] + R[1, 1] * r[1] + R[1, 2] * r[2]),
+                p[2] + (R[2, 0] * r[0] + R[2, 1] * r[1] + R[2, 2] * r[2]))
+
+
+@njit(**_OPTS)
+def _frame(Rb, pb, R, t):
+    """World pose (Rb R, pb + Rb t) of a frame (R, t) fixed in a body at (Rb, pb)."""
+    out = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = Rb[i, 0] * R[0, j] + Rb[i, 1] * R[1, j] + Rb[i, 2] * R[2, j]
+    return out, _to_world(t, Rb, pb)
+
+
 # ----------------------------------------------------------------------------- the path algorithm
 class WrapSpec:
     """A PathWrap prepared for evaluation (object kind, parameters, frame in its body)."""
@@ -1043,15 +1070,15 @@ def wrapped_path_length(X: np.ndarray, active: np.ndarray, wraps: Sequence[WrapS
                 e1, e2 = path[pt1], path[pt1 + 1]
                 if same_object(e1, e2):
                     continue
-                a = (pos[e1] - p) @ R
-                b = (pos[e2] - p) @ R
+                a = _to_local(pos[e1], R, p)
+                b = _to_local(pos[e2], R, p)
                 code, r1, r2, wl = w.wrap(a, b, single)
                 result[i] = code
                 if code == MANDATORY_WRAP:
                     best = (pt1, r1, r2, wl)
                     break
                 if code == WRAPPED:
-                    g1, g2 = p + R @ r1, p + R @ r2
+                    g1, g2 = _to_world(r1, R, p), _to_world(r2, R, p)
                     x1, x2 = ground(e1), ground(e2)
                     change = np.linalg.norm(g1 - x1) + wl + np.linalg.norm(x2 - g2) - np.linalg.norm(x2 - x1)
                     if change < min_change:
@@ -1059,8 +1086,8 @@ def wrapped_path_length(X: np.ndarray, active: np.ndarray, wraps: Sequence[WrapS
                         min_change = change
             if best is not None:
                 pt1, r1, r2, wl = best
-                pos[(k, 1)] = p + R @ r1
-                pos[(k, 2)] = p + R @ r2
+                pos[(k, 1)] = _to_world(r1, R, p)
+                pos[(k, 2)] = _to_world(r2, R, p)
                 surf[(k, 1)] = 0.0
                 surf[(k, 2)] = wl
                 path.insert(pt1 + 1, (k, 1))
@@ -1108,7 +1135,10 @@ def _length(path, npath, n, objs, pos, cache, cached, surf):
         if _same_object(e1, e2, n, objs):
             total += surf[e2]
         else:
-            total += _norm(_ground(e2, n, pos, cache, cached) - _ground(e1, n, pos, cache, cached))
+            x2 = _ground(e2, n, pos, cache, cached)
+            x1 = _ground(e1, n, pos, cache, cached)
+            d0, d1, d2 = x2[0] - x1[0], x2[1] - x1[1], x2[2] - x1[2]
+            total += math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     return total
 
 
@@ -1181,15 +1211,15 @@ def _path_length(X, active, kinds, dims, methods, axes, signs, rstart, rend, act
                 e1, e2 = path[pt1], path[pt1 + 1]
                 if _same_object(e1, e2, n, objs):
                     continue
-                a = (pos[e1] - p) @ R
-                b = (pos[e2] - p) @ R
+                a = _to_local(pos[e1], R, p)
+                b = _to_local(pos[e2], R, p)
                 code, r1, r2, wl = _wrap_any(kinds[k], a, b, dims[k], methods[k], axes[k], signs[k], single)
                 result[i] = code
                 if code == MANDATORY_WRAP:
                     best_pt, best_r1, best_r2, best_wl = pt1, r1, r2, wl
                     break
                 if code == WRAPPED:
-                    g1, g2 = p + R @ r1, p + R @ r2
+                    g1, g2 = _to_world(r1, R, p), _to_world(r2, R, p)
                     x1 = _ground(e1, n, pos, cache, cached)
                     x2 = _ground(e2, n, pos, cache, cached)
                     change = _norm(g1 - x1) + wl + _norm(x2 - g2) - _norm(x2 - x1)
@@ -1198,8 +1228,8 @@ def _path_length(X, active, kinds, dims, methods, axes, signs, rstart, rend, act
                         min_change = change
             if best_pt >= 0:
                 e = n + 2 * k
-                pos[e] = p + R @ best_r1
-                pos[e + 1] = p + R @ best_r2
+                pos[e] = _to_world(best_r1, R, p)
+                pos[e + 1] = _to_world(best_r2, R, p)
                 surf[e] = 0.0
                 surf[e + 1] = best_wl
                 for j in range(npath - 1, best_pt, -1):
@@ -1217,25 +1247,40 @@ def _path_length(X, active, kinds, dims, methods, axes, signs, rstart, rend, act
     return _length(path, npath, n, objs, pos, cache, cached, surf)
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def _lengths_batch(X, keep, body_R, body_p, pstart, pend, wstart, wend, kinds, dims, methods, axes, signs,
-                   rstart, rend, actives, objs, wbody, wR, wt):
-    N = X.shape[0]
-    M = pstart.shape[0]
-    out = np.zeros((N, M))
-    for i in prange(N):
-        for m in range(M):
+@njit(**_OPTS)
+def _lengths_rows(out, r0, r1, X, keep, body_R, body_p, pstart, pend, wstart, wend, kinds, dims, methods, axes,
+                  signs, rstart, rend, actives, objs, wbody, wR, wt):
+    for i in range(r0, r1):
+        for m in range(pstart.shape[0]):
             a, b = pstart[m], pend[m]
             w0, w1 = wstart[m], wend[m]
             Rw = np.empty((w1 - w0, 3, 3))
             pw = np.empty((w1 - w0, 3))
             for k in range(w0, w1):
-                Rb = body_R[i, wbody[k]]
-                Rw[k - w0] = Rb @ wR[k]
-                pw[k - w0] = body_p[i, wbody[k]] + Rb @ wt[k]
+                Rw[k - w0], pw[k - w0] = _frame(body_R[i, wbody[k]], body_p[i, wbody[k]], wR[k], wt[k])
             out[i, m] = _path_length(X[i, a:b], keep[i, a:b], kinds[w0:w1], dims[w0:w1], methods[w0:w1],
                                      axes[w0:w1], signs[w0:w1], rstart[w0:w1], rend[w0:w1], actives[w0:w1],
                                      objs[w0:w1], Rw, pw)
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def _lengths_chunks(out, n_chunks, X, keep, body_R, body_p, pstart, pend, wstart, wend, kinds, dims, methods,
+                    axes, signs, rstart, rend, actives, objs, wbody, wR, wt):
+    N = X.shape[0]
+    for c in prange(n_chunks):
+        _lengths_rows(out, c * N // n_chunks, (c + 1) * N // n_chunks, X, keep, body_R, body_p, pstart, pend,
+                      wstart, wend, kinds, dims, methods, axes, signs, rstart, rend, actives, objs, wbody, wR, wt)
+
+
+def _lengths_batch(X, keep, body_R, body_p, pstart, pend, *rest):
+    """(N, M) wrapped lengths; in parallel (a few chunks per thread) only for large batches."""
+    N = X.shape[0]
+    out = np.zeros((N, len(pstart)))
+    threads = get_num_threads()
+    if threads > 1 and N * len(pstart) >= 4000:
+        _lengths_chunks(out, min(N, 4 * threads), X, keep, body_R, body_p, pstart, pend, *rest)
+    else:
+        _lengths_rows(out, 0, N, X, keep, body_R, body_p, pstart, pend, *rest)
     return out
 
 
@@ -1301,6 +1346,6 @@ class WrappedPaths:
                 frames = []
                 for w in specs:
                     Rb, pb = state.body_R[n, w.body], state.body_p[n, w.body]
-                    frames.append((Rb @ w.R, pb + Rb @ w.t))
+                    frames.append(_frame(Rb, pb, w.R, w.t))
                 out[n, col] = wrapped_path_length(X[n, a:b], keep[n, a:b], specs, frames)
         return out
