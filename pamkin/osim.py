@@ -22,11 +22,11 @@ Supported:
 Forces without a path (coordinate actuators, limit forces, bushings, contact, springs),
 contact geometry, controllers, probes and markers cannot change kinematics or muscle paths:
 they are skipped with one :class:`SkippedComponentsWarning` listing them.
-* Wrap objects ``WrapCylinder``, ``WrapSphere``, ``WrapEllipsoid`` (on bodies, ground or offset
+* Wrap objects ``WrapCylinder``, ``WrapSphere``, ``WrapEllipsoid``, ``WrapTorus`` (on bodies, ground or offset
   frames) and paths' ``PathWrap`` entries (method, range), computed as OpenSim 4.6 does
   (:mod:`pamkin.wrapping`).
 
-Anything else that changes kinematics or muscle paths (``WrapTorus``, other constraints,
+Anything else that changes kinematics or muscle paths (obstacle-set wraps, other constraints,
 other joint, function or path-point types) raises
 :class:`~pamkin.errors.UnsupportedFeatureError` naming the file, the element and
 the component: pamkin never approximates silently.
@@ -688,7 +688,8 @@ def _frame_of(rd: _Reader, ref: str, frames: dict[str, OffsetFrame], body_names:
 QUADRANT_NAMES = {f"{s}{a}" for s in ("", "+", "-") for a in "xyzXYZ"} | {"all", "ALL", "All", "Unassigned"}
 #: Wrap object properties: class -> ((property, default), ...) as OpenSim 4.6 constructs them.
 WRAP_DIMENSIONS = {"WrapCylinder": (("radius", "1"), ("length", "1")), "WrapSphere": (("radius", "0.05"),),
-                   "WrapEllipsoid": (("dimensions", "0.05 0.05 0.05"),)}
+                   "WrapEllipsoid": (("dimensions", "0.05 0.05 0.05"),),
+                   "WrapTorus": (("inner_radius", "0.01"), ("outer_radius", "0.05"))}
 
 
 def _read_wrap_objects(rd: _Reader, model_el: ET.Element, frames: dict[str, OffsetFrame]) -> dict[str, WrapObject]:
@@ -719,7 +720,8 @@ def _read_wrap_objects(rd: _Reader, model_el: ET.Element, frames: dict[str, Offs
             if frame is not None:
                 T = frame.transform() @ T
             dims = tuple(v for prop, default in WRAP_DIMENSIONS[w.tag] for v in rd.floats(w, prop, None, default))
-            if len(dims) != {"WrapCylinder": 2, "WrapSphere": 1, "WrapEllipsoid": 3}[w.tag] or min(dims) <= 0:
+            n_dims = {"WrapCylinder": 2, "WrapSphere": 1, "WrapEllipsoid": 3, "WrapTorus": 2}[w.tag]
+            if len(dims) != n_dims or min(dims) <= 0:
                 raise rd.err(f"{w.tag} dimensions must be positive numbers, are {dims}", w)
             if name in out:
                 raise rd.err(f"two wrap objects are called {name!r}", w)

@@ -1,4 +1,4 @@
-"""Path wrapping over cylinders, spheres and ellipsoids, computed as OpenSim 4.6 computes it.
+"""Path wrapping over cylinders, spheres, ellipsoids and tori, computed as OpenSim 4.6 computes it.
 
 OpenSim (``GeometryPath::applyWrapObjects``) takes the active path points, then for every
 ``PathWrap`` of the path (in order; up to 8 passes when a path has two or more, stopping when the
@@ -14,9 +14,11 @@ This module re-implements that algorithm and the surface computations of ``WrapC
 tangency iteration on the helix), ``WrapSphere`` (great circle) and ``WrapEllipsoid`` (wrapping
 plane by the "hybrid", "midpoint" or "axial" method, tangent points by OpenSim's damped
 Gauss-Newton iteration, length as OpenSim's polyline over the surface with 1 mm segments),
-with quadrants (``+x`` … ``-z``, ``all``) and ``active`` flags, from the source of opensim-core
-(read, not copied). ``WrapTorus`` is refused (its closest-circle search is MINPACK's ``lmdif``
-with loose tolerances, whose iterates would have to be reproduced).
+and ``WrapTorus`` (the closest point of the centre circle by OpenSim's port of MINPACK's ``lmdif``
+with its loose tolerances, reproduced iterate by iterate for one unknown, then a cylinder of the
+tube radius tangent to the circle there), with quadrants (``+x`` … ``-z``, ``all``) and ``active``
+flags, from the source of opensim-core (read, not copied). The obstacle-set classes
+(``WrapCylinderObst``, ``WrapDoubleCylinderObst``, ``WrapSphereObst``) are refused.
 
 The surface computations are scalar numba kernels; the path loop exists twice, in Python
 (:func:`wrapped_path_length`, the readable reference) and compiled (parallel over configurations,
@@ -40,8 +42,8 @@ from numba import get_num_threads, njit, prange
 #: WrapAction codes of OpenSim's WrapObject.
 NO_WRAP, INSIDE_RADIUS, WRAPPED, MANDATORY_WRAP = 0, 1, 2, 3
 #: Wrap object kinds.
-CYLINDER, SPHERE, ELLIPSOID = 0, 1, 2
-KIND_CODE = {"WrapCylinder": CYLINDER, "WrapSphere": SPHERE, "WrapEllipsoid": ELLIPSOID}
+CYLINDER, SPHERE, ELLIPSOID, TORUS = 0, 1, 2, 3
+KIND_CODE = {"WrapCylinder": CYLINDER, "WrapSphere": SPHERE, "WrapEllipsoid": ELLIPSOID, "WrapTorus": TORUS}
 #: PathWrap methods.
 HYBRID, MIDPOINT, AXIAL = 0, 1, 2
 METHOD_CODE = {"hybrid": HYBRID, "midpoint": MIDPOINT, "axial": AXIAL}
@@ -60,13 +62,14 @@ class WrapObject:
 
     Attributes:
         name: Wrap object name (unique in the model).
-        kind: ``WrapCylinder``, ``WrapSphere`` or ``WrapEllipsoid``.
+        kind: ``WrapCylinder``, ``WrapSphere``, ``WrapEllipsoid`` or ``WrapTorus``.
         body: Body (or ``ground``) the object is fixed in.
         rotation: Orientation of the object frame in the body (3, 3).
         translation: Origin of the object frame in the body (3,) [m].
         quadrant: OpenSim's quadrant name (``all``, ``x``, ``-y`` …).
         active: OpenSim's ``active`` flag (an inactive object never wraps).
-        dimensions: Cylinder (radius, length), sphere (radius,), ellipsoid (three radii) [m].
+        dimensions: Cylinder (radius, length), sphere (radius,), ellipsoid (three radii), torus (inner
+            radius, outer radius) [m].
     """
 
     name: str
@@ -946,6 +949,295 @@ def wrap_ellipsoid(point1, point2, dims, method, wrap_axis, wrap_sign):
     return MANDATORY_WRAP, r1 / factor, r2 / factor, wl / factor
 
 
+# ----------------------------------------------------------------------------- torus
+# WrapTorus finds the point of the torus' centre circle closest to the segment with MINPACK's lmdif (OpenSim's
+# C port, one unknown, one residual, tolerances 1e-4, fixed forward-difference step 1e-5) and wraps over a
+# cylinder of the tube radius placed there, tangent to the circle. Below: that lmdif for m = n = 1.
+_MACHEP = 1.2e-16
+_DWARF = 1.0e-38
+
+
+@njit(**_OPTS)
+def _enorm1(x):
+    """MINPACK enorm of a single number."""
+    xabs = abs(x)
+    if xabs > 3.834e-20 and xabs < 1.304e19:
+        return math.sqrt(xabs * xabs)
+    if xabs > 3.834e-20:
+        return xabs * math.sqrt(1.0)
+    return xabs * math.sqrt(1.0 if xabs != 0.0 else 0.0)
+
+
+@njit(**_OPTS)
+def _circle_resid(u, p1, p2, r):
+    """WrapTorus::calcCircleResids."""
+    d0, d1, d2 = p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2]
+    mag = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    nx, ny, nz = d0 / mag, d1 / mag, d2 / mag
+    c2 = 2.0 * (p1[0] * nx + p1[1] * ny + p1[2] * nz)
+    c3 = p1[0] * nx + p1[1] * ny
+    c4 = nx * nx + ny * ny
+    c5 = p1[0] * p1[0] + p1[1] * p1[1]
+    return c2 + 2.0 * u - 2.0 * r * (2.0 * c4 * u + 2.0 * c3) / math.sqrt(u * u * c4 + 2.0 * c3 * u + c5)
+
+
+@njit(**_OPTS)
+def _lmpar1(r, diag, qtb, delta, par):
+    """MINPACK lmpar for n = 1: (par, x, sdiag)."""
+    nsing = 1
+    wa1 = qtb
+    if r == 0.0:
+        nsing = 0
+        wa1 = 0.0
+    if nsing >= 1:
+        wa1 = wa1 / r
+    x = wa1
+    it = 0
+    sdiag = 0.0
+    wa2 = diag * x
+    dxnorm = _enorm1(wa2)
+    fp = dxnorm - delta
+    if fp <= 0.1 * delta:
+        return 0.0, x, sdiag
+    parl = 0.0
+    if nsing >= 1:
+        w = diag * (wa2 / dxnorm)
+        w = (w - 0.0) / r
+        temp = _enorm1(w)
+        parl = ((fp / delta) / temp) / temp
+    w = (0.0 + r * qtb) / diag
+    gnorm = _enorm1(w)
+    paru = gnorm / delta
+    if paru == 0.0:
+        paru = _DWARF / min(delta, 0.1)
+    par = max(par, parl)
+    par = min(par, paru)
+    if par == 0.0:
+        par = gnorm / dxnorm
+    while True:
+        it += 1
+        if par == 0.0:
+            par = max(_DWARF, 0.001 * paru)
+        d = math.sqrt(par) * diag
+        # qrsolv for n = 1: a Givens rotation eliminating d
+        rr = r
+        wa = qtb
+        if d != 0.0:
+            sd = d
+            qtbpj = 0.0
+            if abs(rr) < abs(sd):
+                cotan = rr / sd
+                sin = 0.5 / math.sqrt(0.25 + 0.25 * cotan * cotan)
+                cos = sin * cotan
+            else:
+                tan = sd / rr
+                cos = 0.5 / math.sqrt(0.25 + 0.25 * tan * tan)
+                sin = cos * tan
+            rr = cos * rr + sin * sd
+            temp = cos * wa + sin * qtbpj
+            wa = temp
+        sdiag = rr
+        if sdiag == 0.0:
+            wa = 0.0
+        else:
+            wa = (wa - 0.0) / sdiag
+        x = wa
+        wa2 = diag * x
+        dxnorm = _enorm1(wa2)
+        temp = fp
+        fp = dxnorm - delta
+        if abs(fp) <= 0.1 * delta or (parl == 0.0 and fp <= temp < 0.0) or it == 10:
+            return par, x, sdiag
+        w = diag * (wa2 / dxnorm)
+        w = w / sdiag
+        temp = _enorm1(w)
+        parc = ((fp / delta) / temp) / temp
+        if fp > 0.0:
+            parl = max(parl, par)
+        if fp < 0.0:
+            paru = min(paru, par)
+        par = max(parl, par + parc)
+
+
+@njit(**_OPTS)
+def _lmdif1(p1, p2, r):
+    """OpenSim's lmdif_C on WrapTorus' circle residual from q = 0 (ftol = xtol = 1e-4, gtol = 0, 500
+    evaluations, factor 0.2, mode 1): the final q."""
+    ftol = xtol = 1e-4
+    factor = 0.2
+    x = 0.0
+    fvec = _circle_resid(x, p1, p2, r)
+    nfev = 1
+    fnorm = _enorm1(fvec)
+    par = 0.0
+    it = 1
+    diag = 0.0
+    delta = 0.0
+    xnorm = 0.0
+    while True:                                   # outer loop (L30)
+        h = 1e-5
+        fjac = (_circle_resid(x + h, p1, p2, r) - fvec) / h
+        # qrfac, m = n = 1
+        acnorm = _enorm1(fjac)
+        ajnorm = acnorm
+        a = fjac
+        if ajnorm != 0.0:
+            if a < 0.0:
+                ajnorm = -ajnorm
+            a = a / ajnorm
+            a = a + 1.0
+        rdiag = -ajnorm
+        wa2 = acnorm
+        if it == 1:
+            diag = wa2
+            if wa2 == 0.0:
+                diag = 1.0
+            xnorm = _enorm1(diag * x)
+            delta = factor * xnorm
+            if abs(delta) <= 1e-4:
+                delta = factor
+        wa4 = fvec
+        if a != 0.0:
+            s = 0.0 + a * wa4
+            temp = -s / a
+            wa4 = wa4 + a * temp
+        R = rdiag
+        qtf = wa4
+        gnorm = 0.0
+        if fnorm != 0.0 and wa2 != 0.0:
+            s = 0.0 + R * (qtf / fnorm)
+            gnorm = max(gnorm, abs(s / wa2))
+        if gnorm <= 0.0:
+            return x
+        diag = max(diag, wa2)
+        while True:                               # inner loop (L200)
+            par, step, _sd = _lmpar1(R, diag, qtf, delta, par)
+            step = -step
+            xn = x + step
+            pnorm = _enorm1(diag * step)
+            if it == 1:
+                delta = min(delta, pnorm)
+            f1 = _circle_resid(xn, p1, p2, r)
+            nfev += 1
+            fnorm1 = _enorm1(f1)
+            actred = -1.0
+            if 0.1 * fnorm1 < fnorm:
+                temp = fnorm1 / fnorm
+                actred = 1.0 - temp * temp
+            w3 = 0.0 + R * step
+            temp1 = _enorm1(w3) / fnorm
+            temp2 = (math.sqrt(par) * pnorm) / fnorm
+            prered = temp1 * temp1 + (temp2 * temp2) / 0.5
+            dirder = -(temp1 * temp1 + temp2 * temp2)
+            ratio = 0.0
+            if prered != 0.0:
+                ratio = actred / prered
+            if ratio <= 0.25:
+                if actred >= 0.0:
+                    temp = 0.5
+                else:
+                    temp = 0.5 * dirder / (dirder + 0.5 * actred)
+                if 0.1 * fnorm1 >= fnorm or temp < 0.1:
+                    temp = 0.1
+                delta = temp * min(delta, pnorm / 0.1)
+                par = par / temp
+            elif par == 0.0 or ratio >= 0.75:
+                delta = pnorm / 0.5
+                par = 0.5 * par
+            if ratio >= 0.0001:
+                x = xn
+                fvec = f1
+                xnorm = _enorm1(diag * x)
+                fnorm = fnorm1
+                it += 1
+            info = 0
+            if abs(actred) <= ftol and prered <= ftol and 0.5 * ratio <= 1.0:
+                info = 1
+            if delta <= xtol * xnorm:
+                info = 2
+            if info != 0:
+                return x
+            if nfev >= 500:
+                info = 5
+            if abs(actred) <= _MACHEP and prered <= _MACHEP and 0.5 * ratio <= 1.0:
+                info = 6
+            if delta <= _MACHEP * xnorm:
+                info = 7
+            if gnorm <= _MACHEP:
+                info = 8
+            if info != 0:
+                return x
+            if ratio >= 0.0001:
+                break
+
+
+@njit(**_OPTS)
+def _torus_closest(radius, p1, p2, wrap_sign, wrap_axis):
+    """WrapTorus::findClosestPoint: (found, point of the centre circle)."""
+    a = np.empty((2, 3))
+    dist = np.empty(2)
+    for k in range(2):
+        s, e = (p1, p2) if k == 0 else (p2, p1)
+        u = _lmdif1(s, e, radius)
+        d0, d1, d2 = p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2]
+        mag = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        if k == 0:
+            nx, ny, nz = (p2[0] - p1[0]) / mag, (p2[1] - p1[1]) / mag, (p2[2] - p1[2]) / mag
+            x, y, z = p1[0] + u * nx, p1[1] + u * ny, p1[2] + u * nz
+        else:
+            nx, ny, nz = (p1[0] - p2[0]) / mag, (p1[1] - p2[1]) / mag, (p1[2] - p2[2]) / mag
+            x, y, z = p2[0] + u * nx, p2[1] + u * ny, p2[2] + u * nz
+        a[k, 0], a[k, 1], a[k, 2] = x, y, z
+        dist[k] = math.sqrt(x * x + y * y + z * z + radius * radius - 2.0 * radius * math.sqrt(x * x + y * y))
+    if wrap_sign != 0:
+        s0 = _dsign(a[0, wrap_axis]) == wrap_sign
+        s1 = _dsign(a[1, wrap_axis]) == wrap_sign
+        if s0 and s1:
+            better = 0 if dist[0] < dist[1] else 1
+        elif s0:
+            better = 0
+        elif s1:
+            better = 1
+        else:
+            return False, _T0
+    else:
+        better = 0 if dist[0] < dist[1] else 1
+    mag = math.sqrt(a[better, 0] * a[better, 0] + a[better, 1] * a[better, 1])
+    return True, (a[better, 0] * radius / mag, a[better, 1] * radius / mag, 0.0)
+
+
+@njit(**_OPTS)
+def wrap_torus(point1, point2, inner, outer, wrap_axis, wrap_sign, single):
+    """WrapTorus::wrapLine in the torus frame: (code, r1, r2, wrap length). OpenSim reports every segment
+    as wrapped; where its cylinder does not wrap, r1 and r2 are NaN (the segment is never chosen)."""
+    p1 = (point1[0], point1[1], point1[2])
+    p2 = (point2[0], point2[1], point2[2])
+    found, closest = _torus_closest(outer, p1, p2, wrap_sign, wrap_axis)
+    if not found:
+        return NO_WRAP, _vec(np.nan, np.nan, np.nan), _vec(np.nan, np.nan, np.nan), 0.0
+    c = _t_mul(-1.0, closest)
+    cx = _t_unit(c)
+    cy = (0.0, 0.0, -1.0)
+    cz = _t_cross(cx, cy)
+    # cylinder frame: rows cx, cy, cz; origin at R c
+    def_R = ((cx[0], cx[1], cx[2]), (cy[0], cy[1], cy[2]), (cz[0], cz[1], cz[2]))
+    o = (_dot(def_R[0], c), _dot(def_R[1], c), _dot(def_R[2], c))
+    q1 = _t_add((_dot(def_R[0], p1), _dot(def_R[1], p1), _dot(def_R[2], p1)), o)
+    q2 = _t_add((_dot(def_R[0], p2), _dot(def_R[1], p2), _dot(def_R[2], p2)), o)
+    code, r1, r2, wl = _cylinder(q1, q2, inner, 10000.0, 0, 1, single)
+    if code == WRAPPED or code == MANDATORY_WRAP:
+        return WRAPPED, _from_cyl(def_R, o, r1), _from_cyl(def_R, o, r2), wl
+    return WRAPPED, _vec(np.nan, np.nan, np.nan), _vec(np.nan, np.nan, np.nan), wl
+
+
+@njit(**_OPTS)
+def _from_cyl(R, o, r):
+    """R^T (r - o): a point of the torus' cylinder frame in the torus frame."""
+    d = _t_sub(r, o)
+    return _vec(R[0][0] * d[0] + R[1][0] * d[1] + R[2][0] * d[2], R[0][1] * d[0] + R[1][1] * d[1] + R[2][1] * d[2],
+                R[0][2] * d[0] + R[1][2] * d[1] + R[2][2] * d[2])
+
+
 # ----------------------------------------------------------------------------- frames
 @njit(**_OPTS)
 def _to_local(x, R, p):
@@ -997,6 +1289,8 @@ class WrapSpec:
             return wrap_cylinder(a, b, self.dims[0], self.dims[1], self.axis, self.sign, single)
         if self.kind == SPHERE:
             return wrap_sphere(a, b, self.dims[0], self.axis, self.sign)
+        if self.kind == TORUS:
+            return wrap_torus(a, b, self.dims[0], self.dims[1], self.axis, self.sign, single)
         return wrap_ellipsoid(a, b, self.dims, self.method, self.axis, self.sign)
 
 
@@ -1109,6 +1403,8 @@ def _wrap_any(kind, a, b, dims, method, axis, sign, single):
         return wrap_cylinder(a, b, dims[0], dims[1], axis, sign, single)
     if kind == SPHERE:
         return wrap_sphere(a, b, dims[0], axis, sign)
+    if kind == TORUS:
+        return wrap_torus(a, b, dims[0], dims[1], axis, sign, single)
     return wrap_ellipsoid(a, b, dims, method, axis, sign)
 
 

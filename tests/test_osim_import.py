@@ -115,13 +115,13 @@ def test_unknown_joint_type(tmp_path, osim_text):
         load_osim_file(_write(tmp_path, text))
 
 
-def test_wrap_torus_is_rejected(tmp_path, osim_text):
-    wrap = ('<objects><WrapTorus name="femur_wrap"><inner_radius>0.01</inner_radius><outer_radius>0.05'
-            '</outer_radius></WrapTorus></objects>')
+def test_obstacle_wrap_is_rejected(tmp_path, osim_text):
+    wrap = ('<objects><WrapDoubleCylinderObst name="femur_wrap"><radiusUcyl>0.01</radiusUcyl>'
+            '</WrapDoubleCylinderObst></objects>')
     i = osim_text.index('<Body name="femur_r">')
     j = osim_text.index("<objects />", i)
     text = osim_text[:j] + wrap + osim_text[j + len("<objects />"):]
-    with pytest.raises(UnsupportedFeatureError, match=r'WrapTorus name="femur_wrap".*femur_r'):
+    with pytest.raises(UnsupportedFeatureError, match=r'WrapDoubleCylinderObst name="femur_wrap".*femur_r'):
         load_osim_file(_write(tmp_path, text))
 
 

@@ -2,7 +2,8 @@
 differences of OpenSim's own lengths (OpenSim's computeMomentArm is off with wrapping; its gap is printed).
 
 Models: Arm26 (WrapCylinder, WrapEllipsoid, three wraps on one path), Rajagopal2016 (WrapCylinder, couplers,
-locked coordinates) and a small two-link arm written here with every wrap type, quadrant, method and ranges.
+locked coordinates) and a small two-link arm written here with every wrap type (cylinder, sphere, ellipsoid,
+torus), quadrant, method and ranges.
 """
 
 from __future__ import annotations
@@ -98,7 +99,8 @@ def test_rajagopal_matches_opensim():
 # ----------------------------------------------------------------------------- a small arm with every wrap type
 def _wrap(kind, name, dims, quadrant="all", rotation="0 0 0", translation="0 -0.3 0", active="true"):
     props = {"WrapCylinder": "<radius>{}</radius><length>{}</length>", "WrapSphere": "<radius>{}</radius>",
-             "WrapEllipsoid": "<dimensions>{} {} {}</dimensions>"}[kind].format(*dims)
+             "WrapEllipsoid": "<dimensions>{} {} {}</dimensions>",
+             "WrapTorus": "<inner_radius>{}</inner_radius><outer_radius>{}</outer_radius>"}[kind].format(*dims)
     return (f'<{kind} name="{name}"><active>{active}</active><xyz_body_rotation>{rotation}</xyz_body_rotation>'
             f"<translation>{translation}</translation><quadrant>{quadrant}</quadrant>{props}</{kind}>")
 
@@ -152,6 +154,8 @@ ELBOW_WRAPS = "".join([
     _wrap("WrapEllipsoid", "ell_mx", (0.03, 0.02, 0.025), "-x", rotation="0.3 0.2 0.1"),
     _wrap("WrapEllipsoid", "ell_y", (0.025, 0.02, 0.03), "y", rotation="-0.2 0.1 0.4"),
     _wrap("WrapCylinder", "off", (0.02, 0.1), active="false"),
+    _wrap("WrapTorus", "ring", (0.01, 0.05), rotation="1.5707963 0 0", translation="0 -0.2 0"),
+    _wrap("WrapTorus", "ring_mx", (0.012, 0.035), "-x", rotation="1.5707963 0.3 0", translation="0.01 -0.22 0"),
 ])
 SHOULDER_WRAPS = _wrap("WrapSphere", "gsph", (0.02,), translation="0 0 0")
 BACK = [("upper", "-0.025 -0.15 0.01"), ("lower", "-0.02 -0.08 -0.012")]     # behind the elbow
@@ -174,6 +178,8 @@ TWO_LINK_MUSCLES = [
     # two wraps on one segment: OpenSim's iteration between them
     ("cyl_ell", BACK, [("cyl", "hybrid", "-1 -1"), ("ell_mx", "hybrid", "-1 -1")]),
     ("sph_cyl", BACK, [("sph", "hybrid", "-1 -1"), ("cyl_mx", "hybrid", "-1 -1")]),
+    ("torus", [("upper", "-0.07 -0.1 0.01"), ("lower", "-0.02 -0.08 -0.012")], [("ring", "hybrid", "-1 -1")]),
+    ("torus_mx", [("upper", "-0.05 -0.1 0.01"), ("lower", "-0.02 -0.08 -0.012")], [("ring_mx", "hybrid", "-1 -1")]),
     ("offset_frame", [("upper", "-0.025 -0.15 0.01"), ("lower", "-0.005 -0.25 0")], [("pad", "hybrid", "-1 -1")]),
 ]
 
@@ -227,14 +233,12 @@ def test_compiled_loop_equals_python_loop(arm_path):
         assert np.array_equal(W.lengths(state), fast)
 
 
-def test_torus_and_bad_wrap_settings_are_refused(tmp_path):
+def test_obstacle_wraps_and_bad_wrap_settings_are_refused(tmp_path):
     p = two_link_arm(tmp_path / "a.osim")
     text = p.read_text()
-    bad = text.replace("<WrapSphere name=\"gsph\">", "<WrapTorus name=\"gsph\">").replace(
-        "<radius>0.02</radius></WrapSphere>", "<inner_radius>0.01</inner_radius><outer_radius>0.03</outer_radius>"
-        "</WrapTorus>")
-    p.write_text(bad)
-    with pytest.raises(UnsupportedFeatureError, match=r"WrapTorus"):
+    p.write_text(text.replace("WrapSphere name=\"gsph\"", "WrapCylinderObst name=\"gsph\"").replace(
+        "<radius>0.02</radius></WrapSphere>", "<radius>0.02</radius></WrapCylinderObst>"))
+    with pytest.raises(UnsupportedFeatureError, match=r"WrapCylinderObst"):
         pamkin.load_osim(p)
     for old, new, what in [("<quadrant>-x</quadrant>", "<quadrant>sideways</quadrant>", "quadrant"),
                            ("<method>midpoint</method>", "<method>spline</method>", "wrap method"),
