@@ -44,7 +44,9 @@ class Model:
         osim: The imported model.
         urdf_path: Its URDF (generated from the model data by Xacro).
         engine: ``"compiled"`` (default; numba, parallel over configurations) or
-            ``"numpy"`` (the reference engine); both give the same numbers to round-off.
+            ``"numpy"`` (the reference engine); both give the same numbers to round-off. Wrapped
+            paths (:mod:`pamkin.wrapping`) use numba surface kernels in both; the numpy engine runs
+            their path loop in Python.
     """
 
     def __init__(self, osim: OsimModel, urdf_path: Path, engine: str = "compiled") -> None:
@@ -67,7 +69,7 @@ class Model:
         self._pair_coord = part[:, 1].copy() if len(part) else np.zeros(0, dtype=int)
         self.wrapping: WrappedPaths | None = None
         if any(m.wraps for m in osim.muscles):
-            self._init_wrapping()
+            self._init_wrapping(compiled=engine == "compiled")
         self._fast = None
         if engine == "compiled":
             from .fastpaths import FastPaths  # noqa: PLC0415
@@ -98,9 +100,9 @@ class Model:
     #: Central-difference step of wrapped paths' moment arms [rad or m].
     WRAP_STEP = 1e-6
 
-    def _init_wrapping(self) -> None:
+    def _init_wrapping(self, compiled: bool) -> None:
         kin = self.kinematics
-        self.wrapping = WrappedPaths(self.paths, [m.wraps for m in self.osim.muscles])
+        self.wrapping = WrappedPaths(self.paths, [m.wraps for m in self.osim.muscles], compiled=compiled)
         nc = len(kin.coordinates)
         moves = np.zeros((len(kin.frames), nc), dtype=bool)   # body b moves with coordinate c
         for j in range(kin.n_joints):
