@@ -156,6 +156,15 @@ class Model:
         return PathResult(L, self._wpairs, R)
 
     @property
+    def pairs(self) -> np.ndarray:
+        """(K, 2) (muscle, coordinate) pairs whose moment arms :meth:`path_result` returns: the spanned
+        pairs about independent coordinates (a wrapped path also spans the joints that move its wrap
+        objects relative to its points)."""
+        if self.wrapping is not None:
+            return self._wpairs.copy()
+        return (self._pairs if self.kinematics.couplers else self.paths.pairs).copy()
+
+    @property
     def coordinates(self) -> list[str]:
         """OpenSim coordinate names in model (CoordinateSet) order."""
         return list(self.kinematics.coordinates)

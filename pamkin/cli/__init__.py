@@ -50,7 +50,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         "bodies": model.bodies,
         "coordinates": {c: list(r) for c, r in zip(model.coordinates, model.coordinate_ranges.tolist())},
         "muscles": model.muscles,
-        "spanned_pairs": int(len(model.paths.pairs)),
+        "spanned_pairs": int(len(model.pairs)),
     }
     if args.json:
         print(json.dumps(info, indent=2))
@@ -64,7 +64,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         else:
             print(f"  {c:20s} [{lo:8.3f}, {hi:8.3f}] m")
     spans: dict[int, list[str]] = {}
-    for m, c in model.paths.pairs.tolist():
+    for m, c in model.pairs.tolist():
         spans.setdefault(m, []).append(model.coordinates[c])
     print(f"{len(model.muscles)} muscles ({info['spanned_pairs']} muscle-coordinate pairs with a moment arm): "
           "name, kind, max isometric force [N], optimal fibre length [m], tendon slack length [m], "
