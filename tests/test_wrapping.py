@@ -106,10 +106,10 @@ def _wrap(kind, name, dims, quadrant="all", rotation="0 0 0", translation="0 -0.
 
 
 def _muscle(name, points, wraps):
-    pts = "".join(f'<PathPoint name="{name}-P{i + 1}"><socket_parent_frame>/bodyset/{b}</socket_parent_frame>'
-                  f"<location>{loc}</location></PathPoint>" if b != "ground" else
-                  f'<PathPoint name="{name}-P{i + 1}"><socket_parent_frame>/ground</socket_parent_frame>'
-                  f"<location>{loc}</location></PathPoint>" for i, (b, loc) in enumerate(points))
+    """A Thelen2003Muscle; points are (body, location) or raw XML of other path point types."""
+    pts = "".join(pt if isinstance(pt, str) else
+                  f'<PathPoint name="{name}-P{i + 1}"><socket_parent_frame>{"/ground" if pt[0] == "ground" else "/bodyset/" + pt[0]}'
+                  f"</socket_parent_frame><location>{pt[1]}</location></PathPoint>" for i, pt in enumerate(points))
     pws = "".join(f'<PathWrap name="{name}-w{i}"><wrap_object>{w}</wrap_object><method>{m}</method>'
                   f"<range>{r}</range></PathWrap>" for i, (w, m, r) in enumerate(wraps))
     return (f'<Thelen2003Muscle name="{name}"><GeometryPath name="path"><PathPointSet><objects>{pts}</objects>'
@@ -160,6 +160,16 @@ ELBOW_WRAPS = "".join([
 SHOULDER_WRAPS = _wrap("WrapSphere", "gsph", (0.02,), translation="0 0 0")
 BACK = [("upper", "-0.025 -0.15 0.01"), ("lower", "-0.02 -0.08 -0.012")]     # behind the elbow
 FRONT = [("upper", "0.02 -0.12 0.005"), ("lower", "0.015 -0.07 -0.01")]
+COND = ('<ConditionalPathPoint name="cond"><socket_parent_frame>/bodyset/upper</socket_parent_frame>'
+        "<location>-0.03 -0.27 0</location><range>0.8 1.6</range>"
+        "<socket_coordinate>/jointset/elbow/q2</socket_coordinate></ConditionalPathPoint>")
+MOVING = ('<MovingPathPoint name="moving"><socket_parent_frame>/bodyset/lower</socket_parent_frame>'
+          "<x_location><LinearFunction><coefficients>0.01 -0.03</coefficients></LinearFunction></x_location>"
+          "<y_location><Constant><value>-0.08</value></Constant></y_location>"
+          "<z_location><Constant><value>-0.01</value></Constant></z_location>"
+          "<socket_x_coordinate>/jointset/elbow/q2</socket_x_coordinate>"
+          "<socket_y_coordinate>/jointset/elbow/q2</socket_y_coordinate>"
+          "<socket_z_coordinate>/jointset/elbow/q2</socket_z_coordinate></MovingPathPoint>")
 TWO_LINK_MUSCLES = [
     ("cyl_all", BACK, [("cyl", "hybrid", "-1 -1")]),
     ("cyl_mx", BACK, [("cyl_mx", "hybrid", "-1 -1")]),
@@ -180,6 +190,12 @@ TWO_LINK_MUSCLES = [
     ("sph_cyl", BACK, [("sph", "hybrid", "-1 -1"), ("cyl_mx", "hybrid", "-1 -1")]),
     ("torus", [("upper", "-0.07 -0.1 0.01"), ("lower", "-0.02 -0.08 -0.012")], [("ring", "hybrid", "-1 -1")]),
     ("torus_mx", [("upper", "-0.05 -0.1 0.01"), ("lower", "-0.02 -0.08 -0.012")], [("ring_mx", "hybrid", "-1 -1")]),
+    # a conditional point inside the wrap's range (range scans to the next/previous active point) and a
+    # moving point
+    ("cond_range23", [("upper", "-0.025 -0.15 0.01"), COND, MOVING], [("cyl", "hybrid", "2 3")]),
+    ("cond_range12", [("upper", "-0.025 -0.15 0.01"), COND.replace("-0.03 -0.27 0", "-0.02 -0.35 0.005"), MOVING],
+     [("ell", "hybrid", "1 2")]),
+    ("cond_all", [("upper", "-0.025 -0.15 0.01"), COND, MOVING], [("ell", "midpoint", "-1 -1")]),
     ("offset_frame", [("upper", "-0.025 -0.15 0.01"), ("lower", "-0.005 -0.25 0")], [("pad", "hybrid", "-1 -1")]),
 ]
 
