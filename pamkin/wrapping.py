@@ -1617,16 +1617,35 @@ class WrappedPaths:
             np.array([w.t for w in specs], dtype=float).reshape(-1, 3),
         )
 
+    def _points(self, state, cols) -> np.ndarray:
+        """(N, n_points, 3) world positions of the points of the wrapped paths ``cols`` (others 0)."""
+        ps = self.pathset
+        idx = np.concatenate([np.arange(self._pstart[c], self._pend[c]) for c in cols]) if len(cols) else \
+            np.zeros(0, dtype=int)
+        N = state.q.shape[0]
+        local = np.broadcast_to(ps.point_local[idx], (N, len(idx), 3)).copy()
+        where = {int(p): k for k, p in enumerate(idx)}
+        for pid, pt in ps._moving:
+            if pid in where:
+                for ax in range(3):
+                    cn = pt.coordinates[ax]
+                    qv = state.q[:, ps.kin.coordinates.index(cn)] if cn else np.zeros(N)
+                    local[:, where[pid], ax] = pt.functions[ax].value(qv)
+        body = ps.point_body[idx]
+        X = np.zeros((N, ps.n_points, 3))
+        X[:, idx] = state.body_p[:, body] + np.matmul(state.body_R[:, body], local[..., None])[..., 0]
+        return X
+
     def lengths(self, state, columns: Sequence[int] | None = None) -> np.ndarray:
         """(N, n_wrapped) lengths of the wrapped paths (``indices`` order, or only ``columns`` of it) [m]."""
         ps = self.pathset
-        X, _ = ps.point_positions(state)
+        cols = range(len(self.indices)) if columns is None else columns
+        X = self._points(state, cols)
         N = X.shape[0]
         keep = np.ones((N, ps.n_points), dtype=bool)
         if len(ps._cond_ids):
             v = state.q[:, ps._cond_coord]
             keep[:, ps._cond_ids] = (v >= ps._cond_lo) & (v <= ps._cond_hi)
-        cols = range(len(self.indices)) if columns is None else columns
         if self.compiled:
             cols = np.asarray(cols, dtype=np.int64)
             (kinds, dims, methods, axes, signs, rstart, rend, actives, objs, wbody, wR, wt) = self._arrays
