@@ -8,7 +8,8 @@ tangent plane at its closest surface point, by ``SEGMENT_CLEARANCE`` — and eve
 attachment point gets a slab along its own bone's outward normal, ``POINT_MIN`` ≤ n·(x − c) ≤
 ``POINT_MAX`` (outside the bone, within bracket distance). The constraints are elastic (a slack
 with an L1 penalty, so a round always has a solution) and the points move within a trust region;
-after each round the exact distances are measured again and the best round is kept.
+after each round the exact distances are measured again and the best round is kept. A second,
+optional pass adds rows that keep the route off the other PAMs' bodies (:mod:`optimize.pam_clearance`).
 
 Every world position of a route point is affine in the decision variables (x = base + R_b ℓ), so a
 tangent-plane constraint at a pose is one row ``w·z + w0 ≥ 0`` of the decision vector z of
@@ -30,12 +31,10 @@ from pamkin.paths import PathSet
 
 #: Centre line of every segment at least this far outside every bone at the bone-check poses [m]
 #: (the audit's limit is 2 mm *into* bone; the difference covers poses between the samples).
-SEGMENT_CLEARANCE = 0.001
+SEGMENT_CLEARANCE = 0.003
 #: Attachment points: distance from their own bone along its normal [m] (audit: 0 .. 20 mm).
 POINT_MIN = 0.003
 POINT_MAX = 0.012
-#: Target distance of a point projected onto its bone before the first round [m].
-POINT_TARGET = 0.008
 #: Segment samples nearer than this to a bone give a constraint [m].
 ACTIVATION = 0.010
 #: Spacing of the samples along a segment [m] (at its longest).
@@ -43,6 +42,14 @@ STEP = 0.010
 #: At most this many constraints per segment sample (its closest poses) and in all.
 PER_SAMPLE = 3
 MAX_CUTS = 320
+#: PAM–PAM clearance (second pass): the route's centre line keeps the other PAM bodies' radius + its own
+#: (on its mount segment; a tendon's elsewhere) + this margin away [m]; at most PAM_ROWS of the rows.
+PAM_MARGIN = 0.002
+TENDON_RADIUS = 0.003
+PAM_ACTIVATION = 0.010
+PAM_ROWS = 120
+#: Weight of PAM–PAM overlap against bone violations (rows and merit): bone clearance comes first.
+PAM_WEIGHT = 0.1
 #: Random bone-check poses per actuator.
 N_RANDOM = 200
 #: Random stream of the bone-check poses (the audit draws from AUDIT_STREAM, training from OPTIMIZE_STREAM).
@@ -56,12 +63,18 @@ class Measure:
     segment_depth: np.ndarray          # (segments,) deepest penetration of each segment [m] (<= 0: clear)
     segment_bone: list[str | None]     # the bone of the deepest point
     point_distance: np.ndarray         # (points,) own-bone distance of fixed points [m] (NaN: moving / no mesh)
+    pam_clearance: dict | None = None  # other actuator id -> smallest clearance to its PAM body [m] (< 0: hit)
 
-    def violation(self) -> float:
-        """Σ segment penetration + Σ point distance outside [0, 20 mm] [m] (0: clear of bone)."""
+    def violation(self, pam_weight: float = 1.0) -> float:
+        """Σ segment penetration + Σ point distance outside [0, 20 mm] + pam_weight · Σ PAM-body
+        overlap [m] (0: clear of bone and of the other PAMs)."""
         seg = np.maximum(self.segment_depth, 0.0).sum()
         d = self.point_distance[np.isfinite(self.point_distance)]
-        return float(seg + np.maximum(-d, 0).sum() + np.maximum(d - 0.020, 0).sum())
+        return float(seg + np.maximum(-d, 0).sum() + np.maximum(d - 0.020, 0).sum() + pam_weight * self.pam_overlap())
+
+    def pam_overlap(self) -> float:
+        """Σ over the other PAM bodies of the deepest overlap [m]."""
+        return float(sum(max(-c, 0.0) for c in (self.pam_clearance or {}).values()))
 
     def summary(self, names: list[str]) -> dict:
         segs = [f"{names[a]}-{names[a + 1]}" for a in range(len(names) - 1)]
@@ -71,6 +84,8 @@ class Measure:
                                    for s, d, b in zip(segs, self.segment_depth, self.segment_bone) if d > 0},
             "point_distance_mm": {n: round(1e3 * float(d), 2) for n, d in zip(names, self.point_distance)
                                   if np.isfinite(d)},
+            "pam_overlap_mm": {str(k): round(-1e3 * c, 2) for k, c in sorted((self.pam_clearance or {}).items())
+                               if c < 0},
         }
 
 
@@ -103,6 +118,15 @@ class BoneCuts:
         # base of every point: its body origin (fixed points) or its unshifted moving position
         self.base = np.where(np.array(self.moving)[None, :, None], X, self.state.body_p[:, bidx])
         self.has_mesh = [(not m) and bool(bones.meshes.get(pt.body)) for pt, m in zip(pam.points, self.moving)]
+        self.obstacles: list = []
+        self.radius = 0.0
+        self.mount = 0
+
+    def set_obstacles(self, bodies: list, radius: float, mount: int) -> None:
+        """Other PAMs' bodies (:class:`optimize.pam_clearance.Body` at these poses) to keep clear of;
+        ``radius`` [m] of this PAM's body, which sits on segment ``mount``."""
+        self.obstacles = list(bodies)
+        self.radius, self.mount = float(radius), int(mount)
 
     def world(self, loc: np.ndarray) -> np.ndarray:
         """(S, P, 3) world positions for the point locations/offsets ``loc`` (P, 3)."""
@@ -117,6 +141,7 @@ class BoneCuts:
             segs.append(np.full(len(t), a))
             ts.append(t)
         seg, t = np.concatenate(segs), np.concatenate(ts)
+        self._t = t
         P = X[:, seg] + t[None, :, None] * (X[:, seg + 1] - X[:, seg])
         return P, seg, t
 
@@ -155,13 +180,57 @@ class BoneCuts:
             if self.has_mesh[i]:
                 di, ci, ni = self.bones.body_closest(pt.body, loc[i][None])
                 pd[i], cs[i], ns[i] = di[0], ci[0], ni[0]
-        m = Measure(depth, bone, pd)
+        pam_c, pam_rows = self._pam_clearance(P, seg, with_rows)
+        m = Measure(depth, bone, pd, pam_c)
         if not with_rows:
             return m
-        rows = self._rows(loc, d, c, n, seg, t, cs, ns)
-        return m, rows
+        W, w0 = self._rows(loc, d, c, n, seg, t, cs, ns, room=MAX_CUTS - len(pam_rows[0]))
+        return m, (np.vstack([W, pam_rows[0]]), np.concatenate([w0, pam_rows[1]]))
 
-    def _rows(self, loc, d, c, n, seg, t, cs, ns):
+    def _pam_clearance(self, P, seg, with_rows):
+        """Clearance to every obstacle PAM body (and, optionally, rows for the nearest samples)."""
+        nz = 3 * self.n_points + 2
+        if not self.obstacles:
+            return None, (np.zeros((0, nz)), np.zeros(0))
+        from .pam_clearance import segment_point_distance
+
+        own = np.where(seg == self.mount, self.radius, TENDON_RADIUS)          # (K,)
+        clear: dict = {}
+        cand = []                                                             # (clearance, s, k, Q, need)
+        for body in self.obstacles:
+            for A, B, valid in body.pieces:
+                dist, Q = segment_point_distance(P, A, B)
+                need = body.radius + own[None, :] + PAM_MARGIN
+                c = np.where(valid[:, None], dist - need, np.inf)
+                clear[body.id] = min(clear.get(body.id, np.inf), float(c.min()))
+                if with_rows:
+                    for s_, k in np.argwhere(c < PAM_ACTIVATION):
+                        cand.append((float(c[s_, k]), int(s_), int(k), Q[s_, k], float(need[0, k])))
+        W, w0 = [], []
+        if with_rows and cand:
+            cand.sort(key=lambda x: x[0])
+            used: dict = {}
+            t_all = self._t
+            for c_, s_, k, Q, need in cand:
+                if len(W) >= PAM_ROWS:
+                    break
+                if used.get(k, 0) >= PER_SAMPLE:
+                    continue
+                used[k] = used.get(k, 0) + 1
+                a, tt = int(seg[k]), float(t_all[k])
+                diff = P[s_, k] - Q
+                nn = diff / max(np.linalg.norm(diff), 1e-12)
+                w = np.zeros(nz)
+                w[3 * a:3 * a + 3] += (1 - tt) * (self.R[s_, a].T @ nn)
+                w[3 * a + 3:3 * a + 6] += tt * (self.R[s_, a + 1].T @ nn)
+                base = (1 - tt) * self.base[s_, a] + tt * self.base[s_, a + 1]
+                W.append(PAM_WEIGHT * w)               # a weaker row: bone clearance comes first
+                w0.append(PAM_WEIGHT * float(nn @ base - nn @ Q - need))
+        if not W:
+            return clear, (np.zeros((0, nz)), np.zeros(0))
+        return clear, (np.array(W), np.array(w0))
+
+    def _rows(self, loc, d, c, n, seg, t, cs, ns, room: int = MAX_CUTS):
         nz = 3 * self.n_points + 2
         W, w0 = [], []
         # attachment points outside their bone (body frame): n·(x - c) >= POINT_MIN; within bracket
@@ -177,7 +246,7 @@ class BoneCuts:
         if len(cand):
             order = np.argsort(d[cand[:, 0], cand[:, 1]], kind="stable")
             used = np.zeros(K, dtype=int)
-            room = MAX_CUTS - len(W)
+            room = room - len(W)
             for s_, k in cand[order]:
                 if room <= 0:
                     break
@@ -209,18 +278,6 @@ class BoneCuts:
                 c[i], r[i] = ci[0], POINT_MAX
         return c, r
 
-    def project(self, loc: np.ndarray) -> np.ndarray:
-        """Fixed points outside [POINT_MIN, POINT_MAX] of their own bone moved along its normal to
-        ``POINT_TARGET`` (the start of the first round)."""
-        out = np.array(loc, float, copy=True)
-        for i, pt in enumerate(self.pam.points):
-            if not self.has_mesh[i]:
-                continue
-            d, c, n = self.bones.body_closest(pt.body, out[i][None])
-            if not POINT_MIN <= d[0] <= POINT_MAX:
-                out[i] = c[0] + POINT_TARGET * n[0]
-        return out
-
 
 def bone_check_poses(model, rom, pam, seed: int, n_random: int = N_RANDOM,
                      gait: bool = True) -> tuple[np.ndarray, int]:
@@ -251,18 +308,22 @@ def bone_check_poses(model, rom, pam, seed: int, n_random: int = N_RANDOM,
 TRUST_START = 0.02
 TRUST_MAX = 0.03
 TRUST_MIN = 0.002
+#: Once the route is clear of bone, the rounds stop when the merit improves by less than this fraction.
+STOP_GAIN = 0.05
 #: Merit of a round: objective + MERIT_PENALTY · (exact violation [m]) (as the rows' penalty).
 MERIT_PENALTY = 3000.0
 
 
 def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None):
-    """Move a solved route clear of bone (sequential linearisation with a trust region).
+    """Move a solved route clear of bone, and of the obstacle PAM bodies if :meth:`BoneCuts.set_obstacles`
+    gave any (sequential linearisation with a trust region).
 
-    The attachment points are first projected onto their bones; then each round linearises the
-    clearance at the current route (:meth:`BoneCuts.measure`), solves the problem with these elastic
-    rows within the trust region, and measures the exact distances of the result. A round that
-    lowers the merit (objective + penalty × exact violation) is accepted and the region grows;
-    otherwise the region halves and the round is repeated from the same route.
+    Each round linearises the clearance at the current route (:meth:`BoneCuts.measure`), solves the
+    problem with these elastic rows and balls within the trust region (starting from the fitted route:
+    the first round is always accepted), and measures the exact distances of the result. A round that
+    lowers the merit (objective + penalty × exact violation, PAM overlaps weighted by ``PAM_WEIGHT``)
+    is accepted and the region grows; otherwise the region halves and the round is repeated from the
+    same route. Once clear, the rounds stop when the merit gains less than ``STOP_GAIN``.
 
     Args:
         prob: The :class:`optimize.problem.ActuatorProblem` that gave ``sol``.
@@ -273,17 +334,17 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None):
 
     Returns:
         ``(solution, measure, rounds_info)``: the best accepted round — fewest bone violations
-        first, then the lowest objective — among rounds feasible for the problem's own constraints
+        first, then the least PAM overlap, then the lowest objective — among rounds feasible for the problem's own constraints
         (the input solution when none is), and its exact :class:`Measure`.
     """
     npt = cuts.n_points
     m0 = cuts.measure(np.array(sol.points))
     best, best_m = sol, m0
-    best_key = (round(m0.violation(), 5), sol.objective)
+    best_key = (round(m0.violation(0.0), 5), round(m0.pam_overlap(), 4), sol.objective)
     info = [{"round": 0, "violation_mm": round(1e3 * m0.violation(), 3), "objective": float(sol.objective)}]
-    z = sol.z.copy()
-    z[:3 * npt] = cuts.project(np.array(sol.points)).ravel()
-    merit = np.inf                   # the projected start has no solved objective: accept the first round
+    z = sol.z.copy()        # rows and balls are elastic: the first round starts from the fitted route
+    merit = np.inf                   # accept the first round
+    merit_violation = np.inf
     rho = TRUST_START
     for r in range(rounds):
         _, (W, w0) = cuts.measure(z[:3 * npt].reshape(npt, 3), with_rows=True)
@@ -295,7 +356,7 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None):
         centres, radii = cuts.balls(zc.reshape(npt, 3))
         s, slack = prob.solve_with_rows(z0, sol.n_parallel, W, w0, lbx, ubx, centres, radii)
         ms = cuts.measure(np.array(s.points))
-        m_new = s.objective + MERIT_PENALTY * ms.violation()
+        m_new = s.objective + MERIT_PENALTY * ms.violation(PAM_WEIGHT)
         accept = bool(s.success) and m_new < merit
         info.append({"round": r + 1, "rows": int(len(W)), "trust_mm": round(1e3 * rho, 2), "status": s.status,
                      "feasible": bool(s.success), "accepted": accept, "max_slack_mm": round(1e3 * slack, 3),
@@ -305,14 +366,15 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None):
                        f"violation {1e3 * ms.violation():.2f} mm, objective {s.objective:.4g}"
                        f"{'' if accept else ' (rejected)'}")
         if accept:
-            key = (round(ms.violation(), 5), s.objective)
+            key = (round(ms.violation(0.0), 5), round(ms.pam_overlap(), 4), s.objective)
             if not best.success or best is sol or key < best_key:
                 best, best_m, best_key = s, ms, key
             step = float(np.max(np.abs(s.z[:3 * npt] - zc)))
-            z, merit = s.z.copy(), m_new
+            gain = (merit - m_new) / max(abs(merit), 1e-12) if np.isfinite(merit) else np.inf
+            z, merit, merit_violation = s.z.copy(), m_new, ms.violation()
             rho = min(TRUST_MAX, 1.5 * rho) if step > 0.5 * rho else rho
-            if ms.violation() == 0.0 and step < 1e-4:
-                break
+            if merit_violation == 0.0 and (step < 1e-4 or gain < STOP_GAIN):
+                break                # clear of bone, and the fit no longer improves
         else:
             rho *= 0.5
             if rho < TRUST_MIN:

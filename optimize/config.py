@@ -45,6 +45,8 @@ stays the fast 1-D/2-D fit) and ``examples/optimize_v2.toml`` switches the measu
     bone_mesh = false            # (v2) attachment points on their bone (3..12 mm out), segments clear of the
                                  #      real bone meshes at random, sweep and gait poses (optimize.bone_cuts)
     bone_rounds = 10             # (v2) largest number of re-linearisation rounds of the bone-mesh rows
+    pam_clearance = false        # (v2, with bone_mesh) second pass: routes that hit another PAM's body are
+                                 #      solved again with the first-pass bodies as obstacles
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
 """
@@ -68,7 +70,8 @@ _SECTIONS = {
                "bone_clearance": "bone_clearance", "kmax_scale": "kmax_scale",
                "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths",
                "move_moving_points": "move_moving_points", "rated_force": "rated_force",
-               "one_segment": "one_segment", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds"},
+               "one_segment": "one_segment", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
+               "pam_clearance": "pam_clearance"},
 }
 
 
@@ -117,6 +120,7 @@ class RunConfig:
     one_segment: bool = False
     bone_mesh: bool = False
     bone_rounds: int = 10
+    pam_clearance: bool = False
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     source: str = ""
 
@@ -174,6 +178,8 @@ class RunConfig:
             raise bad("limits.pretension_scale", f"must lie in [0, 1], got {self.pretension_scale}")
         if self.workers < 1:
             raise bad("workers", f"must be >= 1, got {self.workers}")
+        if self.pam_clearance and not self.bone_mesh:
+            raise bad("limits.pam_clearance", "needs limits.bone_mesh = true (the PAM-PAM pass reuses its rounds)")
         if not 1 <= self.bone_rounds <= 20:
             raise bad("limits.bone_rounds", f"must lie in [1, 20], got {self.bone_rounds}")
         if self.max_iter < 1:

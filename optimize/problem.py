@@ -64,6 +64,8 @@ def _point_segment_distance(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.n
 #: Margins that keep the audit's limits when they are checked between the samples.
 #: Penalty of the elastic (bone-clearance) rows per metre of violation (objective units: NRMSE²).
 CUT_PENALTY = 3000.0
+#: Rows of the bone-mesh solver (unused rows are inactive): as many as optimize.bone_cuts.MAX_CUTS.
+CUT_SLOTS = 320
 #: The balls' slack is a squared length [m²]: scaled so that 1 mm outside a 12 mm ball costs ~1 mm of a row.
 BALL_PENALTY_SCALE = 40.0
 RATED_MARGIN = 0.02              # force below 98 % of the rated force
@@ -306,7 +308,7 @@ class ActuatorProblem:
                         radii: np.ndarray | None = None) -> tuple[Solution, float]:
         """Solve from ``z0`` with the elastic rows ``W z + w0 ≥ 0``, the elastic balls
         ``|ℓ_i − centres_i| ≤ radii_i`` (route point i; ``inf``: none) and bounds ``lbx``/``ubx`` on z
-        (a trust region). Rows are padded to a multiple of 64 (inactive rows: 0·z + 1 ≥ 0).
+        (a trust region). Rows are padded to :data:`CUT_SLOTS` (inactive rows: 0·z + 1 ≥ 0).
 
         Returns:
             The solution (its success and violations are those of the problem's own constraints)
@@ -315,7 +317,7 @@ class ActuatorProblem:
         t0 = time.perf_counter()
         nz = self.z.shape[0]
         npt = len(self.free)
-        k = max(64, int(np.ceil(len(W) / 64.0)) * 64)
+        k = max(CUT_SLOTS, int(np.ceil(len(W) / 64.0)) * 64)     # one solver build for every round
         Wp = np.zeros((k, nz))
         w0p = np.ones(k)
         Wp[:len(W)] = W
@@ -343,6 +345,11 @@ class ActuatorProblem:
         sol = self._solution(z, f, stats.get("return_status", "?"), bool(stats.get("success")),
                              time.perf_counter() - t0, n_parallel, skip_capsules=True)
         return sol, slack
+
+    def evaluate(self, z: np.ndarray, n_parallel: int = 1) -> Solution:
+        """The solution at a given decision vector (checked against the meshes, not the capsules)."""
+        f = float(ca.Function("J", [self.z, self.npar], [self.J])(z, n_parallel))
+        return self._solution(np.asarray(z, float), f, "given", True, 0.0, n_parallel, skip_capsules=True)
 
     def _capsule_rows(self) -> np.ndarray:
         """Mask of the bone-capsule clearance rows of :attr:`g`."""

@@ -49,6 +49,8 @@ class ActuatorResult:
     seconds: float = 0.0
     relaxed: list[str] = field(default_factory=list)     # constraint groups this actuator could not meet
     bone: dict = field(default_factory=dict)             # bone-mesh stage: exact clearance and rounds
+    z: np.ndarray | None = None                          # the solution's decision vector
+    n_parallel: int = 1
 
 
 # worker state (fork): set before the pool starts
@@ -131,24 +133,113 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         lines: list[str] = []
         before = best
         best, measure, info = bone_stage(best_problem[0], best, cuts, cfg.bone_rounds, lines)
-        names = [p.name for p in pam.points]
-        bone = {"rounds": info, "before": cuts.measure(np.array(before.points)).summary(names),
-                **measure.summary(names), "clear": bool(measure.violation() == 0.0), "log": lines}
-    best = best_problem[0].finalize(best)
+        bone = _bone_info(cuts, before, measure, info, lines, [p.name for p in pam.points])
+    return _result(pam, data, best_problem[0], best, attempts, t0, bone)
+
+
+def _result(pam: Pam, data, prob, best, attempts: list, t0: float, bone: dict) -> ActuatorResult:
+    """The saved form of an actuator's best solution (tendon clipped at 0, moving points shifted)."""
+    best = prob.finalize(best)
     new_points = []
     for pt, loc in zip(pam.points, best.points):
         if is_free(pt):
             new_points.append(type(pt)(pt.name, pt.body, tuple(float(v) for v in loc)))
         else:
             new_points.append(shift_moving_point(pt, loc))
-    tendon = best.tendon_length
     new = Pam(pam.id, pam.name, pam.human_muscles, pam.primary_coordinate, pam.secondary_coordinates,
-              best.diameter_mm, best.n_parallel, best.rest_length, tendon, tuple(new_points),
+              best.diameter_mm, best.n_parallel, best.rest_length, best.tendon_length, tuple(new_points),
               pam.notes)
     sample_q = {label: data.q[rows] for _, rows, _, _, label in data.objective}
     return ActuatorResult(pam.id, pam.name, new, best.status, best.success, attempts, best.nrmse_samples,
                           best.torque_samples, sample_q, best.violations, time.perf_counter() - t0,
-                          sorted(best_problem[0].relax), bone)
+                          sorted(prob.relax), bone, best.z.copy(), best.n_parallel)
+
+
+def _bone_info(cuts, before, measure, info, lines, names) -> dict:
+    return {"rounds": info, "before": cuts.measure(np.array(before.points)).summary(names),
+            **measure.summary(names), "clear": bool(measure.violation() == 0.0), "log": lines}
+
+
+def _clear_actuator(k: int) -> ActuatorResult:
+    """PAM–PAM pass of one actuator (in a worker): from its first-pass solution, the bone-mesh rounds
+    again with the other PAMs' bodies (first-pass design, fixed) as obstacles."""
+    from .bone_cuts import BoneCuts, bone_stage
+    from .problem import ActuatorProblem
+
+    t0 = time.perf_counter()
+    cfg: RunConfig = _STATE["cfg"]
+    data = _STATE["data"][k]
+    first: ActuatorResult = _STATE["first"][k]
+    pam: Pam = data.pam
+    seed = [np.array(getattr(p, "location", (0.0, 0.0, 0.0)), float) for p in pam.points]
+    regions = [np.array(cfg.region(pam.id, p.name), float) if is_free(p) or cfg.move_moving_points
+               else np.zeros(3) for p in pam.points]
+    prob = ActuatorProblem(data, cfg, first.pam.diameter_mm, seed, regions, frozenset(first.relaxed))
+    sol = prob.evaluate(first.z, first.n_parallel)
+    q, n_right, bodies, radius, mount = _STATE["obstacles"][k]
+    cuts = BoneCuts(pam, _STATE["human"], _STATE["bones"], q, n_right)
+    cuts.set_obstacles(bodies, radius, mount)
+    lines = ["  PAM-PAM pass:"]
+    best, measure, info = bone_stage(prob, sol, cuts, cfg.bone_rounds, lines)
+    bone = _bone_info(cuts, sol, measure, info, first.bone.get("log", []) + lines, [p.name for p in pam.points])
+    attempts = first.attempts + [{"diameter_mm": best.diameter_mm, "n_parallel": best.n_parallel,
+                                  "start": "PAM-PAM pass", "status": best.status, "objective": best.objective,
+                                  "feasible": bool(best.success), "seconds": round(time.perf_counter() - t0, 3),
+                                  "relaxed": sorted(first.relaxed)}]
+    return _result(pam, data, prob, best, attempts, t0 - first.seconds, bone)
+
+
+def clearance_pass(seed: Design, results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr
+                   ) -> list[ActuatorResult]:
+    """Second pass: every actuator whose route comes nearer another PAM's body than their radii (at its
+    bone-check poses, first-pass design) is solved again with the other bodies as obstacles."""
+    from .bone_cuts import BoneCuts, bone_check_poses
+    from .pam_clearance import pam_bodies
+
+    design = seed
+    for r in results:
+        design = design.replace_pam(r.pam)
+    human, rom = _STATE["human"], _STATE["rom"]
+    index = {p.id: k for k, p in enumerate(design.pams)}
+    todo, obstacles = [], {}
+    for k, r in enumerate(results):
+        if r.z is None or not r.success:
+            continue
+        data = _STATE["data"][k]
+        q, n_right = bone_check_poses(human, rom, data.pam, cfg.seed)
+        bodies = pam_bodies(design, human, q)
+        mine = bodies[index[r.id]]
+        others = [b for b in bodies if b.id != r.id]
+        cuts = BoneCuts(data.pam, human, _STATE["bones"], q, n_right)
+        cuts.set_obstacles(others, mine.radius, mine.mount)
+        loc = np.array(first_locations(r, data))
+        m = cuts.measure(loc)
+        hits = {i: c for i, c in (m.pam_clearance or {}).items() if c < 0}
+        if hits:
+            todo.append(k)
+            obstacles[k] = (q, n_right, others, mine.radius, mine.mount)
+            print(f"PAM-PAM: actuator {r.id} {r.name} comes {1e3 * -min(hits.values()):.1f} mm into "
+                  f"{len(hits)} other PAM bodies: solving again", file=stream, flush=True)
+    if not todo:
+        return results
+    _STATE.update(first={k: results[k] for k in todo}, obstacles=obstacles)
+    out = list(results)
+    if cfg.workers > 1 and len(todo) > 1:
+        ctx = mp.get_context("fork")
+        with ctx.Pool(min(cfg.workers, len(todo))) as pool:
+            for k, r in zip(todo, pool.imap(_clear_actuator, todo)):
+                out[k] = r
+                _progress(todo.index(k) + 1, len(todo), r, stream)
+    else:
+        for j, k in enumerate(todo):
+            out[k] = _clear_actuator(k)
+            _progress(j + 1, len(todo), out[k], stream)
+    return out
+
+
+def first_locations(r: ActuatorResult, data) -> list[np.ndarray]:
+    """Decision-variable locations (fixed points) / offsets (moving points) of a solved actuator."""
+    return [r.z[3 * i:3 * i + 3] for i in range(len(data.pam.points))]
 
 
 def bone_line(bone: dict) -> str:
@@ -312,6 +403,8 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
            f"workers {cfg.workers}, multistart {cfg.multistart}, diameters {cfg.diameters_mm}, "
            f"max_parallel {cfg.max_parallel}, force model {cfg.force_model}, pressure {cfg.pressure_Pa:.0f} Pa"]
     results = solve_all(seed, cfg, stream)
+    if cfg.bone_mesh and cfg.pam_clearance:
+        results = clearance_pass(seed, results, cfg, stream)
     solve_seconds = time.perf_counter() - t0
     new = seed
     for r in results:

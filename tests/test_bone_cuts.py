@@ -115,3 +115,42 @@ def test_bone_mesh_config_keys(tmp_path):
     f.write_text("[limits]\nbone_rounds = 0\n")
     with pytest.raises(DataFileError, match="bone_rounds"):
         load_config(f)
+
+
+def test_pam_rows_move_a_toy_route_off_another_pam_body():
+    """The toy route clear of its bones, then a second PAM body (a fixed capsule of radius 10 mm)
+    placed 12 mm beside it: with the PAM–PAM rows the route (radius 7.5 mm) moves clear of it, still
+    clear of bone."""
+    from pamkin.optimize.pam_clearance import Body
+
+    model = pamkin.load_osim(DATA / "two_body.osim")
+    rom = RangeOfMotion({"angle": (-0.2, 0.2)})
+    bones = BoneSet.from_meshes(model, {"base": [_box((0.0, -0.08, -0.03), (0.02, -0.02, 0.03))],
+                                        "arm": [_box((0.0, -0.15, -0.03), (0.02, -0.09, 0.03))]})
+    route = (PathPoint("o", "base", (0.03, -0.05, 0.0)), PathPoint("i", "arm", (0.03, -0.12, 0.0)))
+    seed = Pam(1, "toy", (), "angle", (), 10, 1, 0.25, 0.0, route)
+    seed_robot = PamRobot(Design("seed", (seed,)), model, sides=("r",))
+
+    def target(q):
+        return seed_robot.evaluate(q).torques[:, 0, :]
+
+    cfg = RunConfig(regularization=0.0, bone_clearance=False, n_primary=21, bone_mesh=True,
+                    regions={"1": [0.05, 0.05, 0.05]})
+    data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
+    seed_points = [np.array(p.location) for p in seed.points]
+    prob = ActuatorProblem(data, cfg, 10, seed_points, [np.array(cfg.region(1, p.name)) for p in seed.points])
+    sol = prob.solve(prob.initial_guess(seed_points, None, None), 1)
+    q_check, _ = model.grid(["angle"], 11, rom=rom)
+    cuts = BoneCuts(seed, model, bones, q_check)
+    first, m1, _ = bone_stage(prob, sol, cuts, rounds=8)
+    assert m1.violation() == 0.0
+    X = cuts.world(np.array(first.points))                 # (S, 2, 3): the other body runs 12 mm beside
+    other = Body(2, [(X[:, 0] + [0.0, 0.0, 0.012], X[:, 1] + [0.0, 0.0, 0.012], np.ones(len(X), bool))], 0.010, 0)
+    cuts.set_obstacles([other], 0.0075, 0)
+    before = cuts.measure(np.array(first.points))
+    assert before.pam_clearance[2] < -0.005
+    best, m2, info = bone_stage(prob, prob.evaluate(first.z, 1), cuts, rounds=8)
+    print("PAM clearance before/after [mm]:", 1e3 * before.pam_clearance[2], 1e3 * m2.pam_clearance[2],
+          [(r["violation_mm"], round(r["objective"], 4)) for r in info])
+    assert m2.pam_clearance[2] >= -1e-4
+    assert m2.violation() == 0.0
