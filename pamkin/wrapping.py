@@ -594,14 +594,14 @@ def _closest_ellipse(a, b, u, v):
 
 
 @njit(**_OPTS)
-def _closest_ellipsoid(a, dims, p, out, special):
-    """WrapEllipsoid::findClosestPoint: writes the closest point into ``out`` (left unchanged when
-    OpenSim's Newton iteration fails); ``dims`` are the unscaled radii (tie-break of the special case)."""
-    u, v, w = p[0], p[1], p[2]
+def _closest_ellipsoid_s(a, dims, u, v, w, special):
+    """WrapEllipsoid::findClosestPoint on scalars: (found, x, y, z); not found when OpenSim's Newton iteration
+    fails (OpenSim then leaves its output unchanged); ``dims`` are the unscaled radii (special-case tie-break)."""
     if special < 0:
         best = np.inf
         for i in range(3):
-            if abs(p[i]) <= _ROUNDOFF:
+            c = u if i == 0 else (v if i == 1 else w)
+            if abs(c) <= _ROUNDOFF:
                 s = 0.0
                 for j in range(3):
                     if j != i:
@@ -610,17 +610,14 @@ def _closest_ellipsoid(a, dims, p, out, special):
                     special = i
                     best = s
     if special == 0:
-        out[0] = u
-        out[1], out[2] = _closest_ellipse(a[1], a[2], v, w)
-        return
+        y, z = _closest_ellipse(a[1], a[2], v, w)
+        return True, u, y, z
     if special == 1:
-        out[1] = v
-        out[2], out[0] = _closest_ellipse(a[2], a[0], w, u)
-        return
+        z, x = _closest_ellipse(a[2], a[0], w, u)
+        return True, x, v, z
     if special == 2:
-        out[2] = w
-        out[0], out[1] = _closest_ellipse(a[0], a[1], u, v)
-        return
+        x, y = _closest_ellipse(a[0], a[1], u, v)
+        return True, x, y, w
     aa, bb, cc = a[0], a[1], a[2]
     a2, b2, c2 = aa * aa, bb * bb, cc * cc
     a2u2, b2v2, c2w2 = a2 * u * u, b2 * v * v, c2 * w * w
@@ -633,13 +630,21 @@ def _closest_ellipsoid(a, dims, p, out, special):
         P2, Q2, R2 = P * P, Q * Q, R * R
         f = P2 * Q2 * R2 - a2u2 * Q2 * R2 - b2v2 * P2 * R2 - c2w2 * P2 * Q2
         if abs(f) < 1e-09:
-            out[0] = a2 * u / P
-            out[1] = b2 * v / Q
-            out[2] = c2 * w / R
-            return
+            return True, a2 * u / P, b2 * v / Q, c2 * w / R
         PQ, PR, QR, PQR = P * Q, P * R, Q * R, P * Q * R
         fp = 2.0 * (PQR * (QR + PR + PQ) - a2u2 * QR * (Q + R) - b2v2 * PR * (P + R) - c2w2 * PQ * (P + Q))
         t -= f / fp
+    return False, 0.0, 0.0, 0.0
+
+
+@njit(**_OPTS)
+def _closest_ellipsoid(a, dims, p, out, special):
+    """:func:`_closest_ellipsoid_s` writing into ``out`` (left unchanged when not found)."""
+    ok, x, y, z = _closest_ellipsoid_s(a, dims, p[0], p[1], p[2], special)
+    if ok:
+        out[0] = x
+        out[1] = y
+        out[2] = z
 
 
 @njit(**_OPTS)
@@ -885,14 +890,26 @@ def wrap_ellipsoid(point1, point2, dims, method, wrap_axis, wrap_sign):
             c1 = t_c1[best].copy()
             sv = t_sv[best].copy()
         if method == HYBRID and mu[best] < blend_max:
-            v_sum = np.zeros(3)
             t_sv[2] = r1 + 0.5 * r1r2
-            for i in range(1, 300 - 1):
+            cx, cy, cz = t_c1[0, 0], t_c1[0, 1], t_c1[0, 2]
+            sx = sy = sz = 0.0
+            for i in range(1, 300 - 1):        # the fan: scalar code, no temporary arrays
                 tt = i / 300.0
-                t_sv[0] = r1 + tt * r1r2
-                _closest_ellipsoid(a, dims, t_sv[0], t_c1[0], -1)
-                v_sum += _unit(t_c1[0] - t_sv[0])
-            v_sum = _unit(v_sum)
+                ux, uy, uz = r1[0] + tt * r1r2[0], r1[1] + tt * r1r2[1], r1[2] + tt * r1r2[2]
+                ok, x, y, z = _closest_ellipsoid_s(a, dims, ux, uy, uz, -1)
+                if ok:
+                    cx, cy, cz = x, y, z
+                vx, vy, vz = cx - ux, cy - uy, cz - uz
+                mag = math.sqrt(vx * vx + vy * vy + vz * vz)
+                if mag >= _EPS:
+                    f = 1.0 / mag
+                    vx, vy, vz = vx * f, vy * f, vz * f
+                else:
+                    vx = vy = vz = 0.0
+                sx += vx
+                sy += vy
+                sz += vz
+            v_sum = _unit(_vec(sx, sy, sz))
             t_c1[0] = t_sv[2] + v_sum
             if mu[best] <= blend_min:
                 _closest_ellipsoid(a, dims, t_c1[0], c1, -1)
