@@ -89,6 +89,12 @@ def test_arm26_matches_opensim():
     err_L, err_R, kept, gap = compare_with_opensim(ARM26, 30, seed=1)
     assert err_L < 1e-7 and err_R < 1e-6 and kept > 0.8
     assert gap[0][1] == "TRIlong" and gap[0][0] > 1e-3     # OpenSim's own moment arm is off by ~1 cm
+    # Thelen2003 tendon forces on the wrapped lengths
+    model = _load(ARM26)
+    q = model.random_q(30, seed=1)
+    ref = opensim_reference(ARM26, q, ("tendon_forces",))["tendon_forces"]
+    F = model.tendon_forces(q)
+    assert (np.abs(F - ref) / np.maximum(1.0, np.abs(ref))).max() < 1e-4
 
 
 def test_rajagopal_matches_opensim():
