@@ -247,7 +247,8 @@ def bone_line(bone: dict) -> str:
     segs = "; ".join(f"segment {k} {v['depth_mm']:.1f} mm into {v['bone']}"
                      for k, v in bone["segments_into_bone"].items())
     pts = "; ".join(f"point {k} {v:.1f} mm" for k, v in bone["point_distance_mm"].items() if not 0 <= v <= 20)
-    what = "; ".join(x for x in (segs, pts) if x)
+    pams = "; ".join(f"{v:.1f} mm into PAM {k}" for k, v in bone.get("pam_overlap_mm", {}).items())
+    what = "; ".join(x for x in (segs, pts, pams) if x)
     return ("clear" if bone["clear"] else "NOT clear: " + what) + \
         f" (max penetration {bone['max_segment_penetration_mm']:.1f} mm at the bone-check poses)"
 
@@ -418,6 +419,9 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         if r.bone:
             log.extend(r.bone["log"])
             log.append(f"  bone-mesh clearance of actuator {r.id} {r.name}: " + bone_line(r.bone))
+    for r in results:
+        if r.bone and not r.bone["clear"]:
+            print(f"bone-mesh: actuator {r.id} {r.name}: {bone_line(r.bone)}", file=stream, flush=True)
     print("solving done; checking every actuator on dense grids (numpy pipeline) ...", file=stream, flush=True)
     summary = summarize(seed, new, results, cfg, progress=_check_progress(stream))
     bone = {str(r.id): {k: v for k, v in r.bone.items() if k != "log"} for r in results if r.bone}

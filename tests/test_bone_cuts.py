@@ -154,3 +154,43 @@ def test_pam_rows_move_a_toy_route_off_another_pam_body():
           [(r["violation_mm"], round(r["objective"], 4)) for r in info])
     assert m2.pam_clearance[2] >= -1e-4
     assert m2.violation() == 0.0
+
+
+def test_bone_mesh_run_is_clear_on_held_out_poses(tmp_path, capsys):
+    """`pamkin optimize` with bone_mesh on one actuator (the short head of biceps femoris), checked
+    independently: its saved route's fixed points lie outside their bone within 20 mm, and on the audit's
+    held-out random poses (another random stream) no segment goes more than 2 mm into any bone."""
+    import json
+    import warnings
+
+    from pamkin.audit import random_poses
+    from pamkin.cli import main
+    from pamkin.design import load_design
+    from pamkin.errors import RangeWarning
+    from pamkin.robot import robot_skeleton
+    from pamkin.rom import load_rom
+
+    cfg = tmp_path / "bone.toml"
+    cfg.write_text("multistart = 0\ndiameters_mm = [20]\nmax_parallel = 1\n[limits]\nbone_mesh = true\n")
+    out = tmp_path / "run"
+    assert main(["optimize", str(cfg), "--actuators", "10", "--workers", "1", "--no-audit", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["bone_mesh"]["10"]["clear"], summary["bone_mesh"]
+    skel = robot_skeleton()
+    pam = load_design(out / "design.yaml", bodies=skel.bodies, coordinates=skel.coordinates).pam(10)
+    bones = BoneSet(skel)
+    for pt in pam.points:
+        d = bones.body_signed_distance(pt.body, np.array([pt.location]))[0]
+        assert 0.0 <= d <= 0.020, (pt.name, d)
+    robot = PamRobot(Design("one", (pam,)), skel, sides=("r",))
+    q = random_poses(skel, load_rom("robot_thesis", "r"), 300, seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RangeWarning)
+        st = skel.kinematics.forward(q, warn_range=False)
+    X, _ = robot.paths.point_positions(st)
+    t = np.linspace(0, 1, 60)
+    right = [b for b in bones.bodies if not b.endswith("_l")]
+    for a in range(X.shape[1] - 1):
+        P = X[:, a:a + 1] + t[None, :, None] * (X[:, a + 1:a + 2] - X[:, a:a + 1])
+        d, _ = bones.signed_distance(st, P, margin=0.0, bodies=right)
+        assert d.min() >= -0.002, (a, d.min())
