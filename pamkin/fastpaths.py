@@ -344,6 +344,74 @@ if numba is not None:
                             pt_slot, ms_start, slot_body, SF, SM)
 
 
+    @njit(cache=True)
+    def _poses_kernel(q, j_parent, j_R, j_p, j_axis, j_rev, j_coord, j_fn, b_joint, b_R, b_p,
+                      kind, scale, p0, p1, off, n, kx, ky, kb, kc, kd, bR, bp):
+        """Body placements in ground (the kinematics part of ``_one_config``) for every configuration."""
+        N = q.shape[0]
+        nj = j_parent.shape[0]
+        nb = b_joint.shape[0]
+        jR = np.empty((nj + 1, 3, 3))
+        jp = np.zeros((nj + 1, 3))
+        for r in range(3):
+            for c in range(3):
+                jR[nj, r, c] = 1.0 if r == c else 0.0
+        Rb = np.empty((3, 3))
+        pb = np.empty(3)
+        Rj = np.empty((3, 3))
+        for t in range(N):
+            for j in range(nj):
+                v, _dv = _feval(j_fn[j], q[t, j_coord[j]], kind, scale, p0, p1, off, n, kx, ky, kb, kc, kd)
+                par = j_parent[j]
+                if par < 0:
+                    for r in range(3):
+                        pb[r] = j_p[j, r]
+                        for c in range(3):
+                            Rb[r, c] = j_R[j, r, c]
+                else:
+                    for r in range(3):
+                        acc = jp[par, r]
+                        for c in range(3):
+                            acc += jR[par, r, c] * j_p[j, c]
+                            s_ = 0.0
+                            for k in range(3):
+                                s_ += jR[par, r, k] * j_R[j, k, c]
+                            Rb[r, c] = s_
+                        pb[r] = acc
+                a0, a1, a2 = j_axis[j, 0], j_axis[j, 1], j_axis[j, 2]
+                if j_rev[j]:
+                    sn, cs = np.sin(v), np.cos(v)
+                    C = 1.0 - cs
+                    Rj[0, 0] = cs + a0 * a0 * C
+                    Rj[0, 1] = a0 * a1 * C - a2 * sn
+                    Rj[0, 2] = a0 * a2 * C + a1 * sn
+                    Rj[1, 0] = a1 * a0 * C + a2 * sn
+                    Rj[1, 1] = cs + a1 * a1 * C
+                    Rj[1, 2] = a1 * a2 * C - a0 * sn
+                    Rj[2, 0] = a2 * a0 * C - a1 * sn
+                    Rj[2, 1] = a2 * a1 * C + a0 * sn
+                    Rj[2, 2] = cs + a2 * a2 * C
+                    for r in range(3):
+                        jp[j, r] = pb[r]
+                        for c in range(3):
+                            jR[j, r, c] = Rb[r, 0] * Rj[0, c] + Rb[r, 1] * Rj[1, c] + Rb[r, 2] * Rj[2, c]
+                else:
+                    for r in range(3):
+                        aw = Rb[r, 0] * a0 + Rb[r, 1] * a1 + Rb[r, 2] * a2
+                        jp[j, r] = pb[r] + aw * v
+                        for c in range(3):
+                            jR[j, r, c] = Rb[r, c]
+            for b in range(nb):
+                j = b_joint[b]
+                for r in range(3):
+                    acc = jp[j, r]
+                    for c in range(3):
+                        acc += jR[j, r, c] * b_p[b, c]
+                        bR[t, b, r, c] = jR[j, r, 0] * b_R[b, 0, c] + jR[j, r, 1] * b_R[b, 1, c] \
+                            + jR[j, r, 2] * b_R[b, 2, c]
+                    bp[t, b, r] = acc
+
+
 class FastPaths:
     """Compiled evaluator for a :class:`~pamkin.paths.PathSet` (same results, much faster)."""
 
@@ -405,6 +473,18 @@ class FastPaths:
         self.slot_body = np.array(slot_body, dtype=np.int64)
         self.n_paths = paths.n_paths
         self.n_pairs = len(pairs)
+
+    def body_poses(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Body placements in ground: (N, n_frames, 3, 3) and (N, n_frames, 3), frames as
+        :attr:`pamkin.kinematics.Kinematics.frames` (bodies, then ground); ``q`` with dependent
+        coordinates filled."""
+        q = np.ascontiguousarray(q, dtype=np.float64)
+        nb = self.b_joint.shape[0]
+        bR = np.empty((q.shape[0], nb, 3, 3))
+        bp = np.empty((q.shape[0], nb, 3))
+        _poses_kernel(q, self.j_parent, self.j_R, self.j_p, self.j_axis, self.j_rev, self.j_coord, self.j_fn,
+                      self.b_joint, self.b_R, self.b_p, *self.ftab, bR, bp)
+        return bR, bp
 
     def evaluate(self, q: np.ndarray, moment_arms: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
         """Lengths (N, n_paths) and moment arms (N, n_pairs) (pairs as ``PathSet.pairs``)."""

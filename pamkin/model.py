@@ -132,6 +132,9 @@ class Model:
             self._wrap_fd.append((c, ks, [col[int(m)] for m in self._wpairs[ks, 0]]))
 
     def _wrapped_lengths(self, q: np.ndarray, columns=None) -> np.ndarray:
+        if self._fast is not None:       # compiled body placements (the numpy kinematics dominate otherwise)
+            body_R, body_p = self._fast.body_poses(q)
+            return self.wrapping.lengths(_Poses(q, body_R, body_p), columns)
         return self.wrapping.lengths(self.kinematics.forward(q, warn_range=False), columns)
 
     def _with_wrapping(self, q: np.ndarray, res: PathResult, moment_arms: bool) -> PathResult:
@@ -463,6 +466,13 @@ def gait2392(engine: str = "compiled") -> Model:
     ``gait2392_thelen2003muscle.osim`` (Delp et al., CC BY 3.0).
     """
     return Model(load_model_data(GAIT2392_DATA), GAIT2392_URDF, engine=engine)
+
+
+class _Poses:
+    """What :meth:`pamkin.wrapping.WrappedPaths.lengths` reads of a :class:`KinematicsState`."""
+
+    def __init__(self, q: np.ndarray, body_R: np.ndarray, body_p: np.ndarray) -> None:
+        self.q, self.body_R, self.body_p = q, body_R, body_p
 
 
 class MuscleState:
