@@ -7,7 +7,10 @@ point range the PathWrap names (``range``, 1-based, -1: first/last point) agains
 (in the object's frame) and keeps a *mandatory* wrap (the segment pierces the object) or else the
 wrap that lengthens the path least; the two tangent points r1, r2 are inserted into the path,
 fixed in the wrap object's body. The length is the sum of the straight segments plus, between the
-two points of one wrap, the length over the surface that the wrap object computed.
+two points of one wrap, the length over the surface that the wrap object computed. One quirk is
+reproduced on purpose: OpenSim caches a point's location in ground the first time it is read for a
+state, so after a later pass moves a wrap point, the straight segments still use its first
+location (the surface lengths are the new ones).
 
 This module re-implements that algorithm and the surface computations of ``WrapCylinder``
 (tangent points slid along the axis, helix length; with several wraps on the path, OpenSim's
@@ -21,8 +24,8 @@ flags, from the source of opensim-core (read, not copied). The obstacle-set clas
 (``WrapCylinderObst``, ``WrapDoubleCylinderObst``, ``WrapSphereObst``) are refused.
 
 The surface computations are scalar numba kernels; the path loop exists twice, in Python
-(:func:`wrapped_path_length`, the readable reference) and compiled (parallel over configurations,
-used by default; both give identical numbers, tested). Lengths match OpenSim
+(:func:`wrapped_path_length`, the readable reference) and compiled (chunks of configurations in
+parallel for large batches; used by default; both give identical numbers, tested). Lengths match OpenSim
 4.6 to round-off; they are piecewise smooth: they jump where a wrap switches on or off, where
 OpenSim's discretisations change (number of ellipsoid polyline segments, tangency iterations).
 Moment arms of wrapped paths are central differences of these lengths (see
@@ -1603,6 +1606,10 @@ class WrappedPaths:
     Args:
         pathset: The straight-line path set (point positions and conditional points).
         wraps: Per path, its PathWraps (empty for straight paths).
+        compiled: Run the path loop compiled (default) or in Python (the reference).
+
+    Attributes:
+        indices: The wrapped paths (indices into the path set), the columns of :meth:`lengths`.
     """
 
     def __init__(self, pathset, wraps: Sequence[Sequence[PathWrap]], compiled: bool = True) -> None:
