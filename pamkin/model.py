@@ -34,11 +34,17 @@ class Model:
     independent one divided by the coupler slope d q_dep / d q_indep (which explodes where the
     slope is near 0).
 
+    Paths with wrap objects (:attr:`wrapping`, :mod:`pamkin.wrapping`) have OpenSim 4.6's wrapped
+    lengths; their moment arms are central differences −(L(q + h) − L(q − h)) / 2h of those lengths
+    (h = :attr:`WRAP_STEP`, dependent coordinates following their couplers), which is what OpenSim's
+    lengths imply (OpenSim's own ``computeMomentArm`` differs by up to centimetres with wrapping).
+
     Attributes:
         osim: The imported model description.
         urdf_path: The generated URDF.
         kinematics: Batched kinematics (Pinocchio-backed).
-        paths: Muscle paths (numpy reference engine).
+        paths: Muscle paths (numpy reference engine; straight lines, wraps ignored).
+        wrapping: The wrapped paths (None when no path has a PathWrap).
 
     Args:
         osim: The imported model.
