@@ -247,7 +247,13 @@ class Model:
             res = PathResult(L, self._pairs, out)
         if self.wrapping is None:
             return res
-        return self._with_wrapping(q, res, moment_arms)
+        if len(q) <= chunk:
+            return self._with_wrapping(q, res, moment_arms)
+        parts = [self._with_wrapping(q[i:i + chunk], PathResult(
+            res.lengths[i:i + chunk], res.pairs, None if res.moment_arms is None else res.moment_arms[i:i + chunk]),
+            moment_arms) for i in range(0, len(q), chunk)]        # bounded memory for the central differences
+        return PathResult(np.concatenate([p.lengths for p in parts]), self._wpairs,
+                          np.concatenate([p.moment_arms for p in parts]) if moment_arms else None)
 
     def lengths(self, q: ConfigLike) -> np.ndarray:
         """Musculotendon path lengths (N, n_muscles) [m]."""

@@ -262,6 +262,8 @@ def test_compiled_loop_equals_python_loop(arm_path):
         # round-off of the engines' kinematics (central differences divide it by 2e-6)
         assert np.abs(ref.lengths - fast.lengths).max() < 1e-12
         assert np.abs(ref.moment_arms - fast.moment_arms).max() < 1e-6
+        chunked = model.path_result(q, chunk=7)                          # bounded-memory chunks: same numbers
+        assert np.array_equal(chunked.lengths, fast.lengths) and np.array_equal(chunked.moment_arms, fast.moment_arms)
 
 
 def test_obstacle_wraps_and_bad_wrap_settings_are_refused(tmp_path):
