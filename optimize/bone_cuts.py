@@ -56,6 +56,16 @@ N_RANDOM = 200
 BONE_STREAM = 0xA0D3
 
 
+#: Trust region of the point coordinates [m]: start, largest, and the size below which the rounds stop.
+TRUST_START = 0.02
+TRUST_MAX = 0.03
+TRUST_MIN = 0.002
+#: Once the route is clear of bone, the rounds stop when the merit improves by less than this fraction.
+STOP_GAIN = 0.05
+#: Merit of a round: objective + MERIT_PENALTY · (exact violation [m]) (as the rows' penalty).
+MERIT_PENALTY = 3000.0
+
+
 @dataclass
 class Measure:
     """Exact clearance of a route at the bone-check poses."""
@@ -265,6 +275,18 @@ class BoneCuts:
             return np.zeros((0, nz)), np.zeros(0)
         return np.array(W), np.array(w0)
 
+    def pull_in(self, loc: np.ndarray, reach: float = TRUST_START) -> np.ndarray:
+        """Fixed points farther from their own bone than ``POINT_MAX + reach`` (out of one round's
+        reach) moved along the bone's normal to ``POINT_MAX`` − 2 mm; the others unchanged."""
+        out = np.array(loc, float, copy=True)
+        for i, pt in enumerate(self.pam.points):
+            if not self.has_mesh[i]:
+                continue
+            d, c, n = self.bones.body_closest(pt.body, out[i][None])
+            if d[0] > POINT_MAX + reach:
+                out[i] = c[0] + (POINT_MAX - 0.002) * n[0]
+        return out
+
     def balls(self, loc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per route point: centre (closest point of its own bone to ``loc``) and radius
         ``POINT_MAX`` of the ball the point must stay in (a conservative bracket-distance bound:
@@ -304,16 +326,6 @@ def bone_check_poses(model, rom, pam, seed: int, n_random: int = N_RANDOM,
     return np.vstack(blocks), len(q) + len(q1)
 
 
-#: Trust region of the point coordinates [m]: start, largest, and the size below which the rounds stop.
-TRUST_START = 0.02
-TRUST_MAX = 0.03
-TRUST_MIN = 0.002
-#: Once the route is clear of bone, the rounds stop when the merit improves by less than this fraction.
-STOP_GAIN = 0.05
-#: Merit of a round: objective + MERIT_PENALTY · (exact violation [m]) (as the rows' penalty).
-MERIT_PENALTY = 3000.0
-
-
 def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None):
     """Move a solved route clear of bone, and of the obstacle PAM bodies if :meth:`BoneCuts.set_obstacles`
     gave any (sequential linearisation with a trust region).
@@ -342,7 +354,8 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None):
     best, best_m = sol, m0
     best_key = (round(m0.violation(0.0), 5), round(m0.pam_overlap(), 4), sol.objective)
     info = [{"round": 0, "violation_mm": round(1e3 * m0.violation(), 3), "objective": float(sol.objective)}]
-    z = sol.z.copy()        # rows and balls are elastic: the first round starts from the fitted route
+    z = sol.z.copy()        # rows and balls are elastic: the first round starts from the fitted route, with
+    z[:3 * npt] = cuts.pull_in(np.array(sol.points)).ravel()    # points beyond the trust region pulled in
     merit = np.inf                   # accept the first round
     merit_violation = np.inf
     rho = TRUST_START

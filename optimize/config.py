@@ -17,6 +17,8 @@ stays the fast 1-D/2-D fit) and ``examples/optimize_v2.toml`` switches the measu
     seed = 0                     # random seed of the perturbations
     workers = 2                  # processes (actuators are independent problems)
     max_iter = 400               # IPOPT iterations per solve
+    max_solve_seconds = 0.0      # IPOPT CPU-time limit per solve [s] (0: none); a solve that hits it is
+                                 # treated as failed (infeasible diameter / parallel count tries end sooner)
 
     [samples]
     primary = 25                 # 1-D sweep of the primary coordinate (others 0)
@@ -99,6 +101,7 @@ class RunConfig:
     seed: int = 0
     workers: int = 2
     max_iter: int = 400
+    max_solve_seconds: float = 0.0
     n_primary: int = 25
     n_secondary: int = 7
     n_constraint: int = 5
@@ -167,7 +170,7 @@ class RunConfig:
                 raise bad(_KEYS[name], f"must be >= 2 and <= 201 samples, got {getattr(self, name)}")
         for name in ("multistart", "seed", "multistart_threshold", "weight_primary", "weight_secondary",
                      "regularization", "region_m", "min_point_distance_m", "pretension_scale",
-                     "weight_whole_vector", "weight_mass", "n_random"):
+                     "weight_whole_vector", "weight_mass", "n_random", "max_solve_seconds"):
             if getattr(self, name) < 0:
                 raise bad(_KEYS[name], f"must be >= 0, got {getattr(self, name)}")
         if self.weight_primary + self.weight_secondary <= 0:

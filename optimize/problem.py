@@ -265,7 +265,7 @@ class ActuatorProblem:
             nlp = {"x": self.z, "p": self.npar, "f": self.J, "g": self.g}
             opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": self.cfg.max_iter,
                     "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.acceptable_iter": 5,
-                    "ipopt.mu_strategy": "adaptive", "ipopt.sb": "yes"}
+                    "ipopt.mu_strategy": "adaptive", "ipopt.sb": "yes", **self._time_limit()}
             self._solver = ca.nlpsol("pam", "ipopt", nlp, opts)
         return self._solver
 
@@ -278,6 +278,10 @@ class ActuatorProblem:
         z = np.array(res["x"]).ravel()
         return self._solution(z, float(res["f"]), stats.get("return_status", "?"), bool(stats.get("success")),
                               time.perf_counter() - t0, n_parallel)
+
+    def _time_limit(self) -> dict:
+        t = float(self.cfg.max_solve_seconds)
+        return {"ipopt.max_cpu_time": t} if t > 0 else {}
 
     def cut_solver(self, k: int):
         """IPOPT solver of the problem with ``k`` elastic linear rows ``W z + w0 + s ≥ 0`` and, per
@@ -299,7 +303,7 @@ class ActuatorProblem:
                    "g": g}
             opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": self.cfg.max_iter,
                     "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.acceptable_iter": 5,
-                    "ipopt.mu_strategy": "adaptive", "ipopt.sb": "yes"}
+                    "ipopt.mu_strategy": "adaptive", "ipopt.sb": "yes", **self._time_limit()}
             self._cut_solvers[k] = ca.nlpsol("pam_cuts", "ipopt", nlp, opts)
         return self._cut_solvers[k]
 
