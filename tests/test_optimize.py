@@ -145,6 +145,9 @@ def test_apply_and_warm_start(tmp_path, monkeypatch):
     ("diameters_mm = [12]\n", "diameters_mm"),
     ("[regions]\n\"6.p2\" = -0.1\n", "regions.6.p2"),
     ("workers = \n", "not valid TOML"),
+    ("max_solve_seconds = -1\n", "max_solve_seconds: must be >= 0"),
+    ("[limits]\npam_clearance = true\n", "pam_clearance: needs limits.bone_mesh"),
+    ("[limits]\nbone_mesh = 1\n", "limits.bone_mesh: must be true or false"),
 ])
 def test_bad_config(tmp_path, text, match):
     f = tmp_path / "run.toml"
