@@ -13,7 +13,7 @@ from .osim import OsimModel, load_osim_file
 from .errors import ConfigurationError, EquilibriumWarning, ParameterError, UnsupportedFeatureError
 from .paths import PathResult, PathSet
 from .wrapping import WrappedPaths
-from .thelen2003 import ThelenParams, equilibrium, tendon_force
+from .thelen2003 import ThelenParams, equilibrium, tendon_force_failed
 from .millard2012 import MillardParams
 from .urdf_build import GAIT2392_DATA, GAIT2392_URDF, cached_urdf, load_model_data
 
@@ -273,16 +273,19 @@ class Model:
 
     def _static_forces(self, L: np.ndarray, activation, rigid_tendon: bool, full: bool):
         """Tendon forces (N, n_muscles) at lengths ``L`` and, if ``full``, the equilibrium (Thelen2003
-        muscles: :mod:`pamkin.thelen2003`; Millard2012: :mod:`pamkin.millard2012`, whose ``failed``
-        entries are NaN and raise an :class:`EquilibriumWarning`)."""
+        muscles: :mod:`pamkin.thelen2003`; Millard2012: :mod:`pamkin.millard2012`; ``failed`` entries,
+        where OpenSim finds no equilibrium, are NaN and raise an :class:`EquilibriumWarning`)."""
         self._check_forces()
         if self.millard_params is None:
             if self.thelen_params is None:      # a model without muscles
                 return np.zeros(L.shape), None
             if full:
                 eq = equilibrium(L, self.thelen_params, activation, rigid_tendon=rigid_tendon)
+                self._warn_failed(eq.failed)
                 return eq.tendon_force, eq
-            return tendon_force(L, self.thelen_params, activation, rigid_tendon=rigid_tendon), None
+            F, failed = tendon_force_failed(L, self.thelen_params, activation, rigid_tendon=rigid_tendon)
+            self._warn_failed(failed)
+            return F, None
         from . import millard2012  # noqa: PLC0415
 
         rigid = True if rigid_tendon else None     # False: each muscle's ignore_tendon_compliance
@@ -305,13 +308,17 @@ class Model:
                 x[:, mi] = getattr(b, f)
                 parts[f] = x
             eq = millard2012.Equilibrium(**parts)
-        if eq.failed.any():
-            i, j = np.argwhere(eq.failed)[0]
-            warnings.warn(EquilibriumWarning(
-                f"{self.osim.path}: no static equilibrium for {int(eq.failed.sum())} of {eq.failed.size} "
-                f"(configuration, muscle) pairs, e.g. {self.muscles[j]} in configuration {i} (OpenSim 4.6 "
-                "raises MuscleCannotEquilibrate there); their forces are NaN"), stacklevel=3)
+        self._warn_failed(eq.failed)
         return eq.tendon_force, eq
+
+    def _warn_failed(self, failed: np.ndarray) -> None:
+        """EquilibriumWarning naming the (configuration, muscle) pairs without equilibrium."""
+        if failed.any():
+            i, j = np.argwhere(failed)[0]
+            warnings.warn(EquilibriumWarning(
+                f"{self.osim.path}: no static equilibrium for {int(failed.sum())} of {failed.size} "
+                f"(configuration, muscle) pairs, e.g. {self.muscles[j]} in configuration {i} (OpenSim 4.6 "
+                "raises MuscleCannotEquilibrate there); their forces are NaN"), stacklevel=4)
 
     def evaluate(self, q: ConfigLike, activation: float | np.ndarray = 1.0,
                  rigid_tendon: bool = False) -> MuscleState:
@@ -348,7 +355,7 @@ class Model:
         Thelen2003Muscle and Millard2012EquilibriumMuscle (see :mod:`pamkin.thelen2003`,
         :mod:`pamkin.millard2012`). ``rigid_tendon=True`` makes every tendon rigid; with False a
         Millard muscle's tendon is rigid where the file sets ``ignore_tendon_compliance``. Where
-        OpenSim finds no equilibrium for a Millard muscle the force is NaN and an
+        OpenSim finds no equilibrium (Thelen2003 or Millard2012) the force is NaN and an
         :class:`~pamkin.errors.EquilibriumWarning` is issued.
         """
         self._check_forces()
@@ -493,8 +500,9 @@ class MuscleState:
     Attributes:
         paths: Lengths and sparse moment arms.
         tendon_forces: (N, n_muscles) [N].
-        equilibrium: The fibre/tendon equilibrium (fibre lengths, pennation, clamping; for models with
-            Millard2012 muscles a :class:`pamkin.millard2012.Equilibrium`, which also flags ``failed``).
+        equilibrium: The fibre/tendon equilibrium (fibre lengths, pennation, clamping, ``failed``: no
+            equilibrium in OpenSim; a :class:`pamkin.thelen2003.Equilibrium` for Thelen2003-only models,
+            else a :class:`pamkin.millard2012.Equilibrium`).
     """
 
     def __init__(self, paths: PathResult, tendon_forces: np.ndarray, eq) -> None:

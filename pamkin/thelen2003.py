@@ -35,13 +35,30 @@ and stay there; it then reports the fibre clamped at 0 and the tendon force
 find those entries (``opensim_search=False`` skips this and keeps the force
 continuous in ``lMT``).
 
+**No equilibrium.** OpenSim's search gives up after 20 Newton iterations without
+reaching its tolerance ``max(1e-8·Fmax, 10·SignificantReal)`` with the fibre above its
+minimum length; ``computeInitialFiberEquilibrium`` then raises ``MuscleCannotEquilibrate``
+(and ``Model.equilibrateMuscles`` rethrows it). This happens where the tendon is stretched
+to several times its slack length (e.g. Leg39 with its knee translations uncoupled, tibia
+moved by up to 5 m; never within Gait2392's ranges): the search starts from a fibre far
+longer than the equilibrium one and each Newton step on the exponential passive curve
+shortens it by only about ``e0M/kPE·l0``. :func:`equilibrium` reproduces OpenSim's
+criterion by replaying its search wherever it can end elsewhere than at the root: for
+unpennated fibres and wherever OpenSim's first fibre lies beyond l0 along the tendon
+(descending limb or passive region; on the ascending limb the force error increases with
+the fibre length and the search never took more than 9 of its 20 iterations on 1.2·10⁶ random
+(muscle, length) pairs, see :data:`pamkin._thelen_kernel.SEARCH_START_MAX`). It returns NaN for those
+entries with :attr:`Equilibrium.failed` set (:func:`tendon_force` NaN too);
+:meth:`pamkin.Model.tendon_forces` also warns (:class:`pamkin.errors.EquilibriumWarning`).
+A true equilibrium may exist there (pamkin's own root search would find it, with forces up
+to ~10⁶ N), but OpenSim reports none, and neither does pamkin.
+
 The root itself is then found with a bracketed, safeguarded Newton iteration on the
 fibre length along the tendon (bisection whenever a Newton step would leave the
 bracket), to a residual far below OpenSim's own tolerance of ``1e-8·Fmax``, started
 from the replayed search's answer (or, with ``opensim_search=False``, from one
-fixed-point step away from the rigid-tendon solution). Where OpenSim's search would
-fail (it then raises ``MuscleCannotEquilibrate``; never seen on Gait2392) the true
-equilibrium is returned.
+fixed-point step away from the rigid-tendon solution; then no entry fails and the
+true equilibrium is always returned).
 
 **Implementation.** Every formula (curves, pennation geometry, the search replay,
 clamping) is written once, as scalar numba functions in
@@ -83,6 +100,7 @@ __all__ = [
     "minimum_fiber_length",
     "params_from_osim_xml",
     "tendon_force",
+    "tendon_force_failed",
     "tendon_force_length",
 ]
 
@@ -352,6 +370,8 @@ class Equilibrium:
         active_fiber_force: Fmax·a·fL along the fibre [N]; 0 where clamped (as OpenSim).
         passive_fiber_force: Fmax·fPE along the fibre [N].
         clamped: True where the fibre sits at its minimum length (no equilibrium above it).
+        failed: True where OpenSim's search finds no equilibrium (it raises
+            ``MuscleCannotEquilibrate``); every float field is NaN there.
     """
 
     fiber_length: np.ndarray
@@ -362,6 +382,7 @@ class Equilibrium:
     active_fiber_force: np.ndarray
     passive_fiber_force: np.ndarray
     clamped: np.ndarray
+    failed: np.ndarray
 
 
 #: Default iteration limit of the root search.
@@ -431,41 +452,56 @@ def equilibrium(lmt: np.ndarray, params: ThelenParams, activation: float | np.nd
             where OpenSim leaves the fibre clamped at its minimum length although an
             equilibrium exists above it (only seen for unpennated muscles whose fibre would
             be a fraction of a millimetre long; see
-            :func:`pamkin._thelen_kernel.search_update`). If False, the fibre is clamped
-            only where no equilibrium exists above the minimum length, which makes the force
-            a continuous function of ``lmt``.
+            :func:`pamkin._thelen_kernel.search_update`) and where it finds no equilibrium
+            (``failed``, NaN results). If False, the fibre is clamped only where no
+            equilibrium exists above the minimum length and no entry fails, which makes the
+            force a continuous function of ``lmt``.
         max_iterations: Iteration limit of the root search (it normally stops after 1–2
             iterations when started from OpenSim's answer, under 10 otherwise).
 
     Returns:
-        The equilibrium, every field shaped like ``lmt``.
+        The equilibrium, every field shaped like ``lmt``; where OpenSim finds none,
+        ``failed`` is set and the float fields are NaN.
 
     Raises:
         ConfigurationError: ``lmt``'s last axis does not match the number of muscles, or
             ``activation`` is not finite or does not broadcast.
     """
     shape = np.shape(lmt)
-    out, clamped = _solve(lmt, params, activation, rigid_tendon, opensim_search, max_iterations,
-                          _k.N_OUTPUTS)
+    out, status = _solve(lmt, params, activation, rigid_tendon, opensim_search, max_iterations,
+                         _k.N_OUTPUTS)
     return Equilibrium(**{key: out[row].reshape(shape) for key, row in _OUTPUT_ROWS.items()},
-                       clamped=clamped.reshape(shape))
+                       clamped=(status == _k.AT_LOWER_BOUND).reshape(shape),
+                       failed=(status == _k.FAILED).reshape(shape))
 
 
 def _solve(lmt, params: ThelenParams, activation, rigid_tendon: bool, opensim_search: bool,
            max_iterations: int, n_outputs: int) -> tuple[np.ndarray, np.ndarray]:
     """Run the compiled kernel: (n_outputs, N, n_muscles) float results (all of
-    :data:`_OUTPUT_ROWS`, or the tendon force only) and the (N, n_muscles) clamped flags."""
+    :data:`_OUTPUT_ROWS`, or the tendon force only) and the (N, n_muscles) int8 status
+    (``_k.CONVERGED``, ``_k.AT_LOWER_BOUND`` = clamped, ``_k.FAILED``)."""
     lmt2, act2 = _prepare(lmt, params, activation)
     out = np.empty((n_outputs, *lmt2.shape))
-    clamped = np.empty(lmt2.shape, dtype=bool)
+    status = np.empty(lmt2.shape, dtype=np.int8)
     # hand out work dynamically (balances threads when another process shares a core)
     chunksize = numba.set_parallel_chunksize(_k.CHUNKS_PER_GRAB)
     try:
         _k.equilibrium_kernel(lmt2, act2, _muscle_table(params), bool(rigid_tendon),
-                              bool(opensim_search), int(max_iterations), out, clamped)
+                              _search_mode(opensim_search), int(max_iterations), out, status)
     finally:
         numba.set_parallel_chunksize(chunksize)
-    return out, clamped
+    return out, status
+
+
+def _search_mode(opensim_search) -> int:
+    """Kernel search mode: True -> replay OpenSim's search, left once sure to converge
+    (``_k.SEARCH_FAST``), False -> no replay; an int ``_k.SEARCH_*`` is used as given
+    (``_k.SEARCH_FULL``, the replay to its end, is the reference the default is tested against)."""
+    if opensim_search is True:
+        return _k.SEARCH_FAST
+    if opensim_search is False:
+        return _k.SEARCH_NONE
+    return int(opensim_search)
 
 
 #: Float fields of :class:`Equilibrium` -> row of the kernel's output array.
@@ -492,13 +528,28 @@ def tendon_force(lmt: np.ndarray, params: ThelenParams, activation: float | np.n
         opensim_search: Replay OpenSim's search (see :func:`equilibrium`).
 
     Returns:
-        Tendon force [N], shaped like ``lmt``.
+        Tendon force [N], shaped like ``lmt``; NaN where OpenSim finds no equilibrium
+        (:attr:`Equilibrium.failed`; :func:`tendon_force_failed` also returns those flags).
 
     Raises:
         ConfigurationError: as :func:`equilibrium`.
     """
-    out, _ = _solve(lmt, params, activation, rigid_tendon, opensim_search, _MAX_ITERATIONS, 1)
-    return out[0].reshape(np.shape(lmt))
+    return tendon_force_failed(lmt, params, activation, rigid_tendon,
+                               opensim_search=opensim_search)[0]
+
+
+def tendon_force_failed(lmt: np.ndarray, params: ThelenParams, activation: float | np.ndarray = 1.0,
+                        rigid_tendon: bool = False, *,
+                        opensim_search: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`tendon_force` and where OpenSim finds no equilibrium.
+
+    Returns:
+        (tendon force [N], failed): both shaped like ``lmt``; the force is NaN where ``failed``
+        (as :func:`pamkin.millard2012.tendon_force`).
+    """
+    out, status = _solve(lmt, params, activation, rigid_tendon, opensim_search, _MAX_ITERATIONS, 1)
+    shape = np.shape(lmt)
+    return out[0].reshape(shape), (status == _k.FAILED).reshape(shape)
 
 
 # ----------------------------------------------------------------------------------------------

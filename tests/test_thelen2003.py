@@ -19,6 +19,7 @@ from opensim_ref import GAIT2392, opensim_reference
 
 from pamkin.errors import ConfigurationError, ParameterError, UnsupportedFeatureError
 from pamkin.thelen2003 import (
+    Equilibrium,
     ThelenParams,
     equilibrium,
     force_length_active,
@@ -261,7 +262,8 @@ def test_tendon_strain_inverts_tendon_curve():
 
 def test_opensim_search_only_adds_clamping_of_tiny_unpennated_fibres():
     """The replay of OpenSim's search changes results only where it leaves an unpennated fibre
-    stuck at length 0 although an equilibrium exists (with a fibre well under 1% of l0)."""
+    stuck at length 0 although an equilibrium exists (with a fibre well under 1% of l0), and where
+    it gives up (failed: NaN), which needs a starting fibre far above the passive curve's onset."""
     p = _gait_like_muscles()
     lmt = _random_lengths(p, 2000, seed=3)
     # include lengths where an unpennated fibre is barely longer than 0 at equilibrium
@@ -275,9 +277,13 @@ def test_opensim_search_only_adds_clamping_of_tiny_unpennated_fibres():
     assert (p.pennation_angle_at_optimal[muscle] == 0.0).all()
     assert (smooth.fiber_length[extra] < 1e-2 * p.optimal_fiber_length[muscle]).all()
     np.testing.assert_array_equal(replay.fiber_length[extra], 0.0)
-    same = ~extra
+    assert not smooth.failed.any() and not (replay.failed & replay.clamped).any()
+    assert np.isnan(replay.tendon_force[replay.failed]).all()
+    start = (lmt - 1.01 * p.tendon_slack_length) / p.optimal_fiber_length   # OpenSim's first fibre
+    assert replay.failed.any() and (start[replay.failed] > 3.0).all()
+    same = ~extra & ~replay.failed
     np.testing.assert_allclose(replay.tendon_force[same], smooth.tendon_force[same],
-                               rtol=1e-12, atol=1e-9)
+                               rtol=1e-10, atol=1e-9)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -299,10 +305,16 @@ stretch = st.floats(0.2, 1.8)  # lMT / (lTs + l0)
 @given(p=muscles, s=st.lists(stretch, min_size=1, max_size=20), a=st.floats(0.0, 1.0))
 def test_equilibrium_holds(p, s, a):
     """Non-negative force; geometry closes; unclamped fibres are in force balance; clamped
-    fibres sit at the minimum length and pull at least as hard as the tendon."""
-    lmt = (np.array(s) * (p.tendon_slack_length + p.optimal_fiber_length))[:, None]
+    fibres sit at the minimum length and pull at least as hard as the tendon; entries without
+    OpenSim equilibrium (search replayed only) are NaN."""
+    lmt_all = (np.array(s) * (p.tendon_slack_length + p.optimal_fiber_length))[:, None]
     for search in (True, False):
-        eq = equilibrium(lmt, p, activation=a, opensim_search=search)
+        eq = equilibrium(lmt_all, p, activation=a, opensim_search=search)
+        ok = ~eq.failed[:, 0]
+        assert search or ok.all()
+        assert np.isnan(eq.tendon_force[~ok, 0]).all() and not eq.clamped[~ok, 0].any()
+        eq = Equilibrium(**{k: v[ok] for k, v in vars(eq).items()})
+        lmt = lmt_all[ok]
         f = eq.tendon_force[:, 0]
         assert np.all(np.isfinite(f)) and np.all(f >= 0.0)
         closure = eq.tendon_length + eq.fiber_length * np.cos(eq.pennation_angle)
@@ -537,3 +549,101 @@ def test_tendon_force_matches_opensim_at_lower_activation(gait2392_reference, ac
           f"clamped {eq.clamped.sum()}")
     assert not bad.any()
     assert np.abs(eq.fiber_length - ref["fiber_lengths"]).max() <= 1e-8
+
+
+# ----------------------------------------------------------------------------------------------
+# No equilibrium: where OpenSim's search gives up (MuscleCannotEquilibrate), so does pamkin
+# ----------------------------------------------------------------------------------------------
+
+
+def _leg39_uncoupled(tmp_path):
+    """Leg39 without its CoordinateCouplerConstraints: the knee translations (tib_tx_r in
+    [-5, 5] m, ...) become free coordinates, so random configurations stretch tendons to many
+    times their slack length (the issue's "uncoupled knee translations")."""
+    import re  # noqa: PLC0415
+
+    leg39 = GAIT2392.parent.parent / "Models" / "Leg39" / "leg39.osim"
+    if not leg39.exists():
+        pytest.skip("Leg39 not found")
+    text = re.sub(r"<CoordinateCouplerConstraint .*?</CoordinateCouplerConstraint>", "",
+                  leg39.read_text(), flags=re.S)
+    path = tmp_path / "leg39_uncoupled.osim"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.opensim
+def test_no_equilibrium_where_opensim_finds_none(tmp_path):
+    """OpenSim 4.6 (each muscle's computeEquilibrium in turn, so that every failure is recorded)
+    raises MuscleCannotEquilibrate on about half of the (configuration, muscle) pairs of the
+    uncoupled Leg39; pamkin fails on exactly those (NaN, failed flag, EquilibriumWarning; without
+    this it returned the true equilibrium, up to ~5e6 N) and matches the others."""
+    import warnings  # noqa: PLC0415
+
+    import pamkin  # noqa: PLC0415
+    from millard_ref import opensim_forces  # noqa: PLC0415
+    from pamkin import _thelen_kernel as k  # noqa: PLC0415
+    from pamkin.errors import EquilibriumWarning  # noqa: PLC0415
+    from pamkin.osim import SkippedComponentsWarning  # noqa: PLC0415
+
+    path = _leg39_uncoupled(tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SkippedComponentsWarning)
+        model = pamkin.load_osim(path)
+    assert not model.dependent_coordinates
+    q = model.random_q(200, seed=1)
+    act = np.random.default_rng(4).uniform(0.0, 1.0, (200, len(model.muscles)))
+    act[:100] = 1.0
+    ref = opensim_forces(path, q, act)
+    assert tuple(ref["muscles"]) == tuple(model.muscles)
+    L = model.lengths(q)
+    assert np.abs(L - ref["lengths"]).max() < 1e-9
+    failed = ref["failed"]
+    assert 0.2 * failed.size < failed.sum() < 0.8 * failed.size
+    with pytest.warns(EquilibriumWarning, match=r"no static equilibrium for \d+ of 1800"):
+        F = model.tendon_forces(q, activation=act)
+    with pytest.warns(EquilibriumWarning):
+        st = model.evaluate(q, activation=act)
+    for mode in (True, k.SEARCH_FULL):
+        eq = equilibrium(L, model.thelen_params, act, opensim_search=mode)
+        np.testing.assert_array_equal(eq.failed, failed)
+        assert np.isnan(eq.tendon_force[failed]).all() and np.isnan(eq.fiber_length[failed]).all()
+        ok = ~failed
+        abs_err, rel_err, bad = _force_errors(eq.tendon_force[ok], ref["tendon_forces"][ok])
+        assert not bad.any()
+        assert np.abs(eq.fiber_length[ok] - ref["fiber_lengths"][ok]).max() <= 1e-8
+    print(f"\nLeg39 uncoupled, 200 configurations x 9 muscles: OpenSim fails on {failed.sum()}, pamkin on "
+          f"the same; others: tendon force max abs error {abs_err:.3g} N, max rel {rel_err:.3g}; "
+          f"largest force OpenSim returns {np.nanmax(ref['tendon_forces']):.3g} N")
+    np.testing.assert_array_equal(np.isnan(F), failed)
+    np.testing.assert_array_equal(st.equilibrium.failed, failed)
+    np.testing.assert_array_equal(F, equilibrium(L, model.thelen_params, act).tendon_force)
+    # the smooth model (no replay) has no failures: there it returns the true equilibrium
+    smooth = equilibrium(L, model.thelen_params, act, opensim_search=False)
+    assert not smooth.failed.any() and smooth.tendon_force[failed].max() > 1e5
+
+
+def test_search_replayed_where_needed_equals_replay_everywhere():
+    """The default replays OpenSim's search only for unpennated muscles and where OpenSim's first
+    fibre starts beyond l0 along the tendon (:data:`pamkin._thelen_kernel.SEARCH_START_MAX`);
+    replaying it for every entry gives the same clamped and failed entries and the same forces, over
+    random muscles (compliant tendons up to lTs·e0T = 5·l0) and musculotendon lengths from 0.2 to
+    12 times lTs + l0 (about half of them fail)."""
+    from pamkin import _thelen_kernel as k  # noqa: PLC0415
+
+    rng = np.random.default_rng(7)
+    m = 300
+    p = ThelenParams(max_isometric_force=rng.uniform(10, 5000, m), optimal_fiber_length=rng.uniform(0.01, 0.5, m),
+                     tendon_slack_length=rng.uniform(0.005, 0.5, m),
+                     pennation_angle_at_optimal=np.where(rng.random(m) < 0.3, 0.0, rng.uniform(0, 0.6, m)),
+                     fmax_tendon_strain=rng.uniform(0.02, 0.1, m), fmax_muscle_strain=rng.uniform(0.3, 1.0, m),
+                     kshape_active=rng.uniform(0.3, 0.7, m), kshape_passive=rng.uniform(2, 8, m))
+    stretch = np.concatenate([rng.uniform(0.2, 12.0, (300, m)), rng.uniform(0.8, 3.0, (300, m))])
+    lmt = (p.optimal_fiber_length + p.tendon_slack_length) * stretch
+    for a in (1.0, 0.0, rng.random(lmt.shape)):
+        needed = equilibrium(lmt, p, a)
+        always = equilibrium(lmt, p, a, opensim_search=k.SEARCH_FULL)
+        np.testing.assert_array_equal(needed.failed, always.failed)
+        np.testing.assert_array_equal(needed.clamped, always.clamped)
+        np.testing.assert_allclose(needed.tendon_force, always.tendon_force, rtol=1e-9, atol=1e-9)
+    assert needed.failed.mean() > 0.3 and needed.clamped.any()
