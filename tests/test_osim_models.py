@@ -228,3 +228,79 @@ def test_errors_are_pamkin_errors(tmp_path):
     p.write_text(GAIT2392.read_text().replace("<BodySet", "<BodySetX", 1).replace("</BodySet>", "</BodySetX>", 1))
     with pytest.raises(PamkinError):
         load_osim_file(p)
+
+
+def _sub(text, pattern, repl):
+    new, n = re.subn(pattern, repl, text, count=1, flags=re.S)
+    assert n == 1, pattern
+    return new
+
+
+def _extra_coupler(text):
+    """A coupler that makes knee_angle_r follow tib_tx_r, which already follows knee_angle_r."""
+    m = re.search(r'<CoordinateCouplerConstraint name="knee_tx_r">.*?</CoordinateCouplerConstraint>', text, flags=re.S)
+    block = m.group(0).replace('name="knee_tx_r"', 'name="loop"')
+    block = re.sub(r"<independent_coordinate_names>\s*knee_angle_r\s*</independent_coordinate_names>",
+                   "<independent_coordinate_names>tib_tx_r</independent_coordinate_names>", block)
+    block = re.sub(r"<dependent_coordinate_name>\s*tib_tx_r\s*</dependent_coordinate_name>",
+                   "<dependent_coordinate_name>knee_angle_r</dependent_coordinate_name>", block)
+    return text[:m.end()] + block + text[m.end():]
+
+
+def _second_joint(text):
+    m = re.search(r'<SliderJoint name="ground_block">.*?</SliderJoint>', text, flags=re.S)
+    twin = m.group(0).replace('name="ground_block"', 'name="twin"').replace('name="block_tz"', 'name="twin_tz"')
+    return text[:m.end()] + twin + text[m.end():]
+
+
+# Every reason the importer refuses a file, one case each (file-level reasons tested elsewhere: pre-4.0 files,
+# ignore_tendon_compliance and PointOnLineConstraint above; joint types, muscle classes, function types and
+# not well-formed files in test_osim_import.py; obstacle-set wraps and wrap settings in test_wrapping.py).
+# (base model, mutation, error class, message pattern)
+TUG, LEG = "Tug_of_War/Tug_of_War.osim", "Leg39/leg39.osim"
+REFUSALS = {
+    "model component": (TUG, lambda t: _sub(t, r'(<BodySet name="bodyset">)', r'<components><Bogus name="bog" /></components>\1'),
+                        UnsupportedFeatureError, r'<Bogus name="bog">: model component <Bogus> is not supported'),
+    "frame component": (TUG, lambda t: _sub(t, r"(<components>)", r'\1<Bogus name="bog" />'),
+                        UnsupportedFeatureError, r"<Bogus> component of Ground"),
+    "BodySet entry": (TUG, lambda t: _sub(t, r'(<BodySet name="bodyset">\s*<objects>)', r'\1<Bogus name="bog" />'),
+                      UnsupportedFeatureError, r"<Bogus> in BodySet is not supported"),
+    "joint frame": (TUG, lambda t: _sub(t, r"(<frames>)", r'\1<Bogus name="bog" />'),
+                    UnsupportedFeatureError, r"<Bogus> joint frame is not supported"),
+    "coordinates entry": (TUG, lambda t: _sub(t, r"(<coordinates>)", r'\1<Bogus name="bog" />'),
+                          UnsupportedFeatureError, r"<Bogus> in coordinates"),
+    "prescribed coordinate": (TUG, lambda t: _sub(t, r"<prescribed>false</prescribed>", "<prescribed>true</prescribed>"),
+                              UnsupportedFeatureError, r'<Coordinate name="block_tz">: prescribed coordinates'),
+    "closed loop": (TUG, _second_joint, OsimError, r"child of two joints"),
+    "no BodySet": (TUG, lambda t: t.replace("<BodySet", "<BodySetX").replace("</BodySet>", "</BodySetX>"),
+                   OsimError, r"no <BodySet><objects>"),
+    "no JointSet": (TUG, lambda t: t.replace("<JointSet", "<JointSetX").replace("</JointSet>", "</JointSetX>"),
+                    OsimError, r"no <JointSet><objects>"),
+    "coupler of two coordinates": (LEG, lambda t: _sub(t, r"<independent_coordinate_names>knee_angle_r<",
+                                                       "<independent_coordinate_names>knee_angle_r hip_angle_r<"),
+                                   UnsupportedFeatureError, r'name="knee_tx_r">: coupler with 2 independent'),
+    "coupler cycle": (LEG, _extra_coupler, OsimError, r"couplers form a cycle"),
+    "axis of two coordinates": (LEG, lambda t: _sub(t, r"<coordinates>hip_angle_r</coordinates>",
+                                                    "<coordinates>hip_angle_r pelvis_tilt</coordinates>"),
+                                UnsupportedFeatureError, r"depends on 2 coordinates"),
+    "coordinate of another joint": (LEG, lambda t: _sub(t, r"<coordinates>hip_angle_r</coordinates>",
+                                                        "<coordinates>pelvis_tilt</coordinates>"),
+                                    UnsupportedFeatureError, r"uses coordinate 'pelvis_tilt' of another joint"),
+    "parallel rotation axes": (LEG, lambda t: _sub(
+        t, r'(<TransformAxis name="rotation2">\s*<!--[^>]*-->\s*<coordinates></coordinates>\s*<!--[^>]*-->\s*)'
+           r'<axis>0 1 0</axis>(\s*<!--[^>]*-->\s*<Constant name="function">\s*<value>)0<',
+        r"\1<axis>0 0 1</axis>\g<2>0.1<"),
+        UnsupportedFeatureError, r'<CustomJoint name="ground_pelvis">: rotation1 and rotation2 are parallel'),
+    "not an OpenSim model": (TUG, lambda t: _sub(t, r"<Model name=(.*)</Model>", r"<Mode name=\1</Mode>"),
+                             OsimError, r"no <OpenSimDocument><Model> element"),
+}
+
+
+@pytest.mark.parametrize("reason", REFUSALS)
+def test_each_refusal_reason_names_file_element_component(reason, tmp_path):
+    base, mutate, error, pattern = REFUSALS[reason]
+    p = tmp_path / "refused.osim"
+    p.write_text(mutate((MODELS / base).read_text()))
+    with pytest.raises(error, match=pattern) as info:
+        load_osim_file(p)
+    assert str(info.value).startswith(str(p))
