@@ -573,6 +573,7 @@ def _leg39_uncoupled(tmp_path):
 
 
 @pytest.mark.opensim
+@pytest.mark.slow  # ~23 s without the OpenSim cache
 def test_no_equilibrium_where_opensim_finds_none(tmp_path):
     """OpenSim 4.6 (each muscle's computeEquilibrium in turn, so that every failure is recorded)
     raises MuscleCannotEquilibrate on about half of the (configuration, muscle) pairs of the
