@@ -26,7 +26,9 @@ def add_parsers(sub) -> None:
                     "around the seed design's, resting and tendon lengths, with an outer loop over Festo "
                     "diameter and number of parallel PAMs, so that the PAM torque matches the torque of the "
                     "human muscles it replaces over the range of motion, within the PAMs' strain limits and "
-                    "clear of the bone shafts. Writes a run folder (design.yaml, summary.json, log.txt, "
+                    "clear of the bone-shaft capsules (with limits.bone_mesh in CONFIG: of the real bone meshes, "
+                    "points within 12 mm of their bone; examples/optimize_v2.toml). Writes a run folder "
+                    "(design.yaml, summary.json, log.txt, "
                     "before_after.png); --apply also writes the design into robot/data/pam_biped.yaml and "
                     "regenerates urdf/pam_biped.urdf (atomically; only when every actuator is feasible).")
     s.add_argument("config", nargs="?", metavar="CONFIG",
