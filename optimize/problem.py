@@ -68,6 +68,8 @@ CUT_PENALTY = 3000.0
 CUT_SLOTS = 320
 #: The balls' slack is a squared length [m²]: scaled so that 1 mm outside a 12 mm ball costs ~1 mm of a row.
 BALL_PENALTY_SCALE = 40.0
+#: Largest constraint violation (in each row's own units: m, N, -) of a solution counted as feasible.
+FEASIBILITY_TOL = 1e-6
 RATED_MARGIN = 0.02              # force below 98 % of the rated force
 SEGMENT_MARGIN = 0.002           # [m] the PAM clears its segment's ends
 
@@ -263,10 +265,7 @@ class ActuatorProblem:
         """The IPOPT solver (built once; CasADi derives exact Hessians of the SX expressions)."""
         if self._solver is None:
             nlp = {"x": self.z, "p": self.npar, "f": self.J, "g": self.g}
-            opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": self.cfg.max_iter,
-                    "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.acceptable_iter": 5,
-                    "ipopt.mu_strategy": "adaptive", "ipopt.sb": "yes", **self._time_limit()}
-            self._solver = ca.nlpsol("pam", "ipopt", nlp, opts)
+            self._solver = ca.nlpsol("pam", "ipopt", nlp, self._ipopt_options())
         return self._solver
 
     def solve(self, z0: np.ndarray, n_parallel: int = 1) -> Solution:
@@ -279,9 +278,17 @@ class ActuatorProblem:
         return self._solution(z, float(res["f"]), stats.get("return_status", "?"), bool(stats.get("success")),
                               time.perf_counter() - t0, n_parallel)
 
-    def _time_limit(self) -> dict:
+    def _ipopt_options(self) -> dict:
+        """IPOPT options of every solve. IPOPT's own feasibility tolerances (``constr_viol_tol`` 1e-4,
+        ``acceptable_constr_viol_tol`` 1e-2 by default) are set below the run's feasibility check
+        (:data:`FEASIBILITY_TOL`), so "solved" and "solved to an acceptable level" mean feasible for it."""
         t = float(self.cfg.max_solve_seconds)
-        return {"ipopt.max_cpu_time": t} if t > 0 else {}
+        return {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": self.cfg.max_iter,
+                "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.acceptable_iter": 5,
+                "ipopt.constr_viol_tol": 0.1 * FEASIBILITY_TOL,
+                "ipopt.acceptable_constr_viol_tol": 0.1 * FEASIBILITY_TOL,
+                "ipopt.mu_strategy": "adaptive", "ipopt.sb": "yes",
+                **({"ipopt.max_cpu_time": t} if t > 0 else {})}
 
     def cut_solver(self, k: int):
         """IPOPT solver of the problem with ``k`` elastic linear rows ``W z + w0 + s ≥ 0`` and, per
@@ -301,10 +308,7 @@ class ActuatorProblem:
             nlp = {"x": ca.vertcat(self.z, s), "p": ca.vertcat(self.npar, ca.vec(W), w0, c, r2),
                    "f": self.J + CUT_PENALTY * ca.sum1(s[:k]) + CUT_PENALTY * BALL_PENALTY_SCALE * ca.sum1(s[k:]),
                    "g": g}
-            opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": self.cfg.max_iter,
-                    "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.acceptable_iter": 5,
-                    "ipopt.mu_strategy": "adaptive", "ipopt.sb": "yes", **self._time_limit()}
-            self._cut_solvers[k] = ca.nlpsol("pam_cuts", "ipopt", nlp, opts)
+            self._cut_solvers[k] = ca.nlpsol("pam_cuts", "ipopt", nlp, self._ipopt_options())
         return self._cut_solvers[k]
 
     def solve_with_rows(self, z0: np.ndarray, n_parallel: int, W: np.ndarray, w0: np.ndarray,
@@ -378,7 +382,7 @@ class ActuatorProblem:
             nrmse[label] = float(np.sqrt(np.mean((val - th) ** 2)) / peak) if peak > 0 else float("nan")
         violations = {k: v for k, v in violations.items() if not (skip_capsules and " clears " in k)}
         return Solution(self.d, n_parallel, pts, float(z[-2]), float(z[-1]), f, status,
-                        success and max(viol, default=0) <= 1e-6, violations, nrmse, torques, seconds, z.copy(),
+                        success and max(viol, default=0) <= FEASIBILITY_TOL, violations, nrmse, torques, seconds, z.copy(),
                         skip_capsules)
 
     def finalize(self, sol: Solution) -> Solution:
@@ -388,5 +392,5 @@ class ActuatorProblem:
         z[-1] = max(z[-1], 0.0)
         out = self._solution(z, sol.objective, sol.status, sol.success, sol.seconds, sol.n_parallel,
                              sol.skip_capsules)
-        out.success = sol.success and max(out.violations.values(), default=0.0) <= 1e-6
+        out.success = sol.success and max(out.violations.values(), default=0.0) <= FEASIBILITY_TOL
         return out

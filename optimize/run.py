@@ -330,11 +330,13 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
 
 def check_results(results: list[ActuatorResult]) -> None:
     """Raise :class:`InfeasibleError` naming the violated constraints of infeasible actuators."""
+    from .problem import FEASIBILITY_TOL  # noqa: PLC0415  (casadi only in workers / optimiser)
+
     bad = [r for r in results if not r.success]
     if bad:
         lines = []
         for r in bad:
-            worst = sorted(((v, k) for k, v in r.violations.items() if v > 1e-6), reverse=True)[:3]
+            worst = sorted(((v, k) for k, v in r.violations.items() if v > FEASIBILITY_TOL), reverse=True)[:3]
             what = "; ".join(f"{k} (violated by {v:.3g})" for v, k in worst) or r.status
             lines.append(f"actuator {r.id} {r.name}: {r.status}: {what}")
         raise InfeasibleError("infeasible: " + " | ".join(lines))
@@ -415,7 +417,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
     for r in results:
         log.append(f"actuator {r.id} {r.name}: {r.status} in {r.seconds:.1f} s; attempts: " +
                    "; ".join(f"{a['diameter_mm']} mm x{a['n_parallel']} {a['start']}: {a['status']} "
-                             f"J={a['objective']:.4g}" for a in r.attempts))
+                             f"J={a['objective']:.4g}{'' if a['feasible'] else ' (infeasible)'}" for a in r.attempts))
         if r.bone:
             log.extend(r.bone["log"])
             log.append(f"  bone-mesh clearance of actuator {r.id} {r.name}: " + bone_line(r.bone))
