@@ -42,13 +42,16 @@ stays the fast 1-D/2-D fit) and ``examples/optimize_v2.toml`` switches the measu
     pretension_scale = 1.0       # stretch limit = pretension_scale * Festo's limit
     fix_lengths = false          # keep the seed resting and tendon lengths (move attachment points only)
     move_moving_points = true    # offset points that move with a coordinate (the patella) within the region
-    rated_force = false          # (v2) force per PAM <= Festo's rated force at every constraint sample
+    rated_force = false          # (v2) force per PAM <= Festo's rated force and contraction <= Festo's maximum (0.25)
     one_segment = false          # (v2) the PAM (+ fittings) fits on one straight segment of its route
     bone_mesh = false            # (v2) attachment points on their bone (3..12 mm out), segments clear of the
                                  #      real bone meshes at random, sweep and gait poses (optimize.bone_cuts)
     bone_rounds = 10             # (v2) largest number of re-linearisation rounds of the bone-mesh rows
     pam_clearance = false        # (v2, with bone_mesh) second pass: routes that hit another PAM's body are
                                  #      solved again with the first-pass bodies as obstacles
+    max_units = 0                # (v2) PAM units of the whole robot (both sides; 0: no limit): the diameter
+                                 #      and parallel count of every actuator are chosen together, before the
+                                 #      bone-mesh rounds, for the least summed score within this budget
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
 """
@@ -73,6 +76,7 @@ _SECTIONS = {
                "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths",
                "move_moving_points": "move_moving_points", "rated_force": "rated_force",
                "one_segment": "one_segment", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
+               "max_units": "max_units",
                "pam_clearance": "pam_clearance"},
 }
 
@@ -124,6 +128,7 @@ class RunConfig:
     bone_mesh: bool = False
     bone_rounds: int = 10
     pam_clearance: bool = False
+    max_units: int = 0
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     source: str = ""
 
@@ -183,6 +188,8 @@ class RunConfig:
             raise bad("workers", f"must be >= 1, got {self.workers}")
         if self.pam_clearance and not self.bone_mesh:
             raise bad("limits.pam_clearance", "needs limits.bone_mesh = true (the PAM-PAM pass reuses its rounds)")
+        if self.max_units < 0:
+            raise bad("limits.max_units", f"must be >= 0 (0: no limit), got {self.max_units}")
         if not 1 <= self.bone_rounds <= 20:
             raise bad("limits.bone_rounds", f"must lie in [1, 20], got {self.bone_rounds}")
         if self.max_iter < 1:
@@ -208,6 +215,13 @@ class RunConfig:
         if unknown:
             raise DataFileError(self.source or "<config>", f"actuators: unknown actuator id(s) {unknown}; the "
                                                            f"design {design.name!r} has {sorted(pams)}")
+        if self.max_units:
+            ids = set(self.actuators or pams)
+            fixed = 2 * sum(p.n_parallel for p in design.pams if p.id not in ids)
+            if 2 * len(ids) + fixed > self.max_units:
+                raise DataFileError(self.source or "<config>", f"limits.max_units: {self.max_units} PAM units "
+                                    f"cannot hold one PAM per actuator on both sides: the {len(ids)} optimised "
+                                    f"actuators need {2 * len(ids)} and the others keep {fixed}")
         for key in self.regions:
             aid, _, point = str(key).partition(".")
             if int(aid) not in pams:

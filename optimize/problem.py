@@ -11,7 +11,7 @@ moment arms, contractions, forces and torques as CasADi expressions.
 
 Objective: Σ_c w_c · mean_s (τ_robot − τ_human)² / peak_c² + λ Σ_i |ℓ_i − ℓ_i⁰|² / region_i².
 Constraints (every constraint sample, including the multi-joint training poses): −pretension ≤ ε ≤
-kmax(l0); force per PAM ≤ Festo's rated force; the PAM (resting and actual length, with both fittings)
+kmax(l0); force per PAM ≤ Festo's rated force and contraction ≤ Festo's 25 % (``rated_force``); the PAM (resting and actual length, with both fittings)
 fits on the route's longest segment (``one_segment``; left out, and reported, where that makes the
 problem infeasible); successive points at least ``min_point_distance`` apart; interior points of every
 segment clear the bone-shaft capsules by capsule radius + PAM radius; t ≥ 0 (PAM + fittings + tendon
@@ -168,6 +168,10 @@ class ActuatorProblem:
             rated = festo.F_MAX_THEORETICAL[diameter] * (1.0 - RATED_MARGIN)
             g.append((self.unit_force[0, ci] - rated).T); lbg += [-np.inf] * len(ci); ubg += [0.0] * len(ci)
             fam += ["force per PAM <= Festo rated force"] * len(ci)
+            # Festo's permissible contraction (0.25) is below the force model's kmax for 20 and 40 mm
+            g.append(eps_c.T); lbg += [-np.inf] * len(ci)
+            ubg += [festo.max_contraction(diameter) - STRAIN_MARGIN] * len(ci)
+            fam += ["contraction <= Festo maximum contraction"] * len(ci)
         if cfg.one_segment and "one_segment" not in relax and len(X) > 2:
             # the PAM sits on the route's longest segment (at the seed): that segment holds the resting
             # PAM and the actual (possibly stretched) PAM with both fittings; the tendon takes the rest

@@ -51,6 +51,8 @@ class ActuatorResult:
     bone: dict = field(default_factory=dict)             # bone-mesh stage: exact clearance and rounds
     z: np.ndarray | None = None                          # the solution's decision vector
     n_parallel: int = 1
+    # (fit-only first phase of a run with a unit budget) {(diameter, n_parallel): (score, Solution, relaxed)}
+    candidates: dict = field(default_factory=dict, repr=False)
 
 
 # worker state (fork): set before the pool starts
@@ -71,6 +73,7 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     regions = [np.array(cfg.region(pam.id, p.name), float) if is_free(p) or cfg.move_moving_points
                else np.zeros(3) for p in pam.points]
     attempts, best = [], None
+    candidates: dict = {}
     problems: dict = {}
     best_problem: list = [None]
     best_score = [np.inf]
@@ -90,6 +93,8 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
                          "objective": sol.objective, "feasible": sol.success, "seconds": round(sol.seconds, 3),
                          "relaxed": sorted(relax)})
         sc = score(sol)
+        if sol.success and sc < candidates.get((d, n), (np.inf,))[0]:
+            candidates[(d, n)] = (sc, sol, relax)
         better = best is None or (sol.success and not best.success) or \
             (sol.success == best.success and sc < best_score[0] - 1e-12)
         if better:
@@ -124,17 +129,91 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
             pts = [p + rng.uniform(-0.5, 0.5, 3) * r for p, r in zip(best.points, regions)]
             attempt(best.diameter_mm, best.n_parallel, pts, None, None, f"perturbed {m + 1}", relaxed)
     assert best is not None
-    bone: dict = {}
-    if cfg.bone_mesh and best.success:
-        from .bone_cuts import BoneCuts, bone_check_poses, bone_stage  # noqa: PLC0415
-
-        cuts = BoneCuts(pam, _STATE["human"], _STATE["bones"],
-                        *bone_check_poses(_STATE["human"], _STATE["rom"], pam, cfg.seed))
-        lines: list[str] = []
-        before = best
-        best, measure, info = bone_stage(best_problem[0], best, cuts, cfg.bone_rounds, lines)
-        bone = _bone_info(cuts, before, measure, info, lines, [p.name for p in pam.points])
+    if _STATE.get("fit_only"):        # unit budget: the bone-mesh rounds follow the global choice
+        out = _result(pam, data, best_problem[0], best, attempts, t0, {})
+        out.candidates = candidates
+        return out
+    best, bone = _bone_rounds(best_problem[0], best, pam, cfg)
     return _result(pam, data, best_problem[0], best, attempts, t0, bone)
+
+
+def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
+    """The bone-mesh stage of a solved actuator (when ``cfg.bone_mesh``): (solution, bone info)."""
+    if not (cfg.bone_mesh and best.success):
+        return best, {}
+    from .bone_cuts import BoneCuts, bone_check_poses, bone_stage  # noqa: PLC0415
+
+    cuts = BoneCuts(pam, _STATE["human"], _STATE["bones"],
+                    *bone_check_poses(_STATE["human"], _STATE["rom"], pam, cfg.seed))
+    lines: list[str] = []
+    before = best
+    best, measure, info = bone_stage(prob, best, cuts, cfg.bone_rounds, lines)
+    return best, _bone_info(cuts, before, measure, info, lines, [p.name for p in pam.points])
+
+
+def _finish_actuator(k: int) -> ActuatorResult:
+    """Second phase of a run with a unit budget (in a worker): the chosen diameter and parallel count
+    of actuator ``k`` (``_STATE["choice"]``) from its first-phase fit, then the bone-mesh rounds."""
+    from .problem import ActuatorProblem  # noqa: PLC0415
+
+    t0 = time.perf_counter()
+    cfg: RunConfig = _STATE["cfg"]
+    data = _STATE["data"][k]
+    first: ActuatorResult = _STATE["first"][k]
+    pam: Pam = data.pam
+    key = _STATE["choice"][k]
+    if key is None:                   # nothing feasible: the first phase's (failed) result stands
+        return first
+    _, sol, relax = first.candidates[key]
+    seed = [np.array(getattr(p, "location", (0.0, 0.0, 0.0)), float) for p in pam.points]
+    regions = [np.array(cfg.region(pam.id, p.name), float) if is_free(p) or cfg.move_moving_points
+               else np.zeros(3) for p in pam.points]
+    prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax)
+    best, bone = _bone_rounds(prob, sol, pam, cfg)
+    attempts = first.attempts + [{"diameter_mm": key[0], "n_parallel": key[1], "start": "unit budget choice",
+                                  "status": sol.status, "objective": sol.objective, "feasible": bool(sol.success),
+                                  "seconds": 0.0, "relaxed": sorted(relax)}]
+    return _result(pam, data, prob, best, attempts, t0 - first.seconds, bone)
+
+
+def choose_units(results: list[ActuatorResult], budget: int) -> tuple[list, float]:
+    """Diameter and parallel count of every actuator for the least summed score with at most ``budget``
+    PAM units on one side (exact, by dynamic programming over the first phase's feasible candidates).
+
+    Returns:
+        ``(choice, total score)``: per result its ``(diameter, n_parallel)`` (None where it has no
+        feasible candidate: it keeps its failed solution, counted with its parallel count).
+
+    Raises:
+        InfeasibleError: when even the smallest counts exceed the budget.
+    """
+    fixed = sum(r.n_parallel for r in results if not r.candidates)
+    options = [sorted(((sc, key) for key, (sc, _, _) in r.candidates.items()), key=lambda o: o[1][1])
+               for r in results if r.candidates]
+    cap = budget - fixed
+    need = sum(min(key[1] for _, key in opts) for opts in options)
+    if need > cap:
+        raise InfeasibleError(f"limits.max_units: the actuators' feasible diameter / parallel-count choices need "
+                              f"at least {need + fixed} PAM units per side, the budget allows {budget}")
+    INF = float("inf")
+    table = [0.0] * (cap + 1)           # table[u]: least score of the actuators so far using <= u units
+    picks: list[list] = []
+    for opts in options:
+        new, pick = [INF] * (cap + 1), [None] * (cap + 1)
+        for u in range(cap + 1):
+            for sc, key in opts:
+                if key[1] <= u and table[u - key[1]] + sc < new[u]:
+                    new[u], pick[u] = table[u - key[1]] + sc, key
+        table = new
+        picks.append(pick)
+    u, chosen = cap, []
+    for opts, pick in zip(reversed(options), reversed(picks)):
+        key = pick[u]
+        chosen.append(key)
+        u -= key[1]
+    chosen.reverse()
+    it = iter(chosen)
+    return [next(it) if r.candidates else None for r in results], float(table[cap])
 
 
 def _result(pam: Pam, data, prob, best, attempts: list, t0: float, bone: dict) -> ActuatorResult:
@@ -312,20 +391,40 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
         from pamkin.bones import BoneSet  # noqa: PLC0415
 
         _STATE["bones"] = BoneSet(human)
-    tasks = [(k, 0) for k in range(len(pams))]
+    _STATE["fit_only"] = bool(cfg.max_units)
+    order = {i: k for k, i in enumerate(ids)}
+    results = sorted(_map(_solve_actuator, [(k, 0) for k in range(len(pams))], cfg, stream),
+                     key=lambda r: order[r.id])
+    if not cfg.max_units:
+        return results
+    # unit budget: choose every actuator's diameter and count together, then the bone-mesh rounds
+    others = sum(p.n_parallel for p in seed_design.pams if p.id not in order)
+    free = sum(r.n_parallel for r in results)
+    choice, total = choose_units(results, cfg.max_units // 2 - others)
+    units = sum(key[1] if key else r.n_parallel for key, r in zip(choice, results))
+    changed = [f"{r.id} {r.name} {r.pam.diameter_mm}x{r.n_parallel} -> {key[0]}x{key[1]}"
+               for r, key in zip(results, choice) if key and key != (r.pam.diameter_mm, r.n_parallel)]
+    print(f"unit budget {cfg.max_units} (both sides): each actuator's own best needs {2 * (free + others)}; "
+          f"chosen {2 * (units + others)} (summed score {total:.4g})" + (": " + "; ".join(changed) if changed else ""),
+          file=stream, flush=True)
+    _STATE.update(fit_only=False, first=dict(enumerate(results)), choice=dict(enumerate(choice)))
+    return sorted(_map(_finish_actuator, list(range(len(results))), cfg, stream), key=lambda r: order[r.id])
+
+
+def _map(fn, tasks: list, cfg: RunConfig, stream) -> list[ActuatorResult]:
+    """``fn`` over ``tasks`` in ``cfg.workers`` forked processes (progress on ``stream``)."""
     results: list[ActuatorResult] = []
     if cfg.workers > 1 and len(tasks) > 1:
         ctx = mp.get_context("fork")
         with ctx.Pool(min(cfg.workers, len(tasks))) as pool:
-            for r in pool.imap_unordered(_solve_actuator, tasks):
+            for r in pool.imap_unordered(fn, tasks):
                 results.append(r)
                 _progress(len(results), len(tasks), r, stream)
     else:
         for t in tasks:
-            results.append(_solve_actuator(t))
+            results.append(fn(t))
             _progress(len(results), len(tasks), results[-1], stream)
-    order = {i: k for k, i in enumerate(ids)}
-    return sorted(results, key=lambda r: order[r.id])
+    return results
 
 
 def check_results(results: list[ActuatorResult]) -> None:

@@ -298,3 +298,51 @@ def test_one_segment_constraint_puts_the_pam_on_one_straight_segment():
     assert np.all(seg >= sol.rest_length + 0.025 - 1e-6)
     assert np.all(seg >= pam_len + 0.025 - 1e-6)
     assert sol.tendon_length > 0
+
+
+def _fake_result(aid: int, options: dict) -> "run_mod.ActuatorResult":
+    """An ActuatorResult whose first phase found ``options`` {(d, n): score} feasible."""
+    pam = load_design().pam(aid)
+    r = run_mod.ActuatorResult(aid, pam.name, pam, "Solve_Succeeded", True, n_parallel=1)
+    r.candidates = {key: (sc, None, frozenset()) for key, sc in options.items()}
+    return r
+
+
+def test_unit_budget_choice_is_the_exact_optimum():
+    """choose_units (dynamic programming) equals brute-force enumeration on random instances."""
+    import itertools
+
+    rng = np.random.default_rng(3)
+    for _ in range(40):
+        n_act = int(rng.integers(1, 6))
+        results = []
+        for a in range(n_act):
+            opts = {(20, 1): float(rng.random())}
+            for n in (2, 3)[: int(rng.integers(0, 3))]:
+                opts[(int(rng.choice([10, 20, 40])), n)] = float(rng.random())
+            results.append(_fake_result(a + 1, opts))
+        budget = int(rng.integers(n_act, 3 * n_act + 1))
+        choice, total = run_mod.choose_units(results, budget)
+        best = min(sum(r.candidates[k][0] for r, k in zip(results, combo))
+                   for combo in itertools.product(*[list(r.candidates) for r in results])
+                   if sum(k[1] for k in combo) <= budget)
+        assert sum(k[1] for k in choice) <= budget
+        assert total == pytest.approx(best, abs=1e-12)
+        assert sum(r.candidates[k][0] for r, k in zip(results, choice)) == pytest.approx(best, abs=1e-12)
+    # an actuator without a feasible candidate keeps its count; too small a budget is a clear error
+    failed = run_mod.ActuatorResult(9, "Gracilis", load_design().pam(9), "Infeasible", False, n_parallel=2)
+    choice, _ = run_mod.choose_units([_fake_result(1, {(20, 1): 0.5, (20, 2): 0.1}), failed], 3)
+    assert choice == [(20, 1), None]
+    with pytest.raises(InfeasibleError, match="at least 4 PAM units per side, the budget allows 3"):
+        run_mod.choose_units([_fake_result(1, {(20, 2): 0.5}), failed], 3)
+
+
+def test_unit_budget_config_errors(tmp_path):
+    f = tmp_path / "run.toml"
+    f.write_text("[limits]\nmax_units = -2\n")
+    with pytest.raises(DataFileError, match="limits.max_units: must be >= 0"):
+        load_config(f)
+    f.write_text("actuators = [4, 5]\n[limits]\nmax_units = 40\n")
+    with pytest.raises(DataFileError, match=r"limits.max_units: 40 PAM units cannot hold one PAM per actuator.*"
+                                            r"the 2 optimised actuators need 4 and the others keep 50"):
+        load_config(f).check_design(load_design())
