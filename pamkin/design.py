@@ -51,6 +51,9 @@ from .urdf_build import ROBOT_DIR, atomic_write
 
 #: The thesis robot's 27 PAMs as designed by hand (sized by the thesis algorithm): the baseline.
 THESIS_DESIGN = ROBOT_DIR / "data" / "thesis_design.yaml"
+#: The thesis design with its 9-muscle gluteal group split into gluteus maximus (24) and gluteus
+#: medius/minimus (28): the seed of the optimiser-v2 example (tools/make_split_gluteal.py).
+SPLIT_GLUTEAL_DESIGN = ROBOT_DIR / "data" / "split_gluteal_design.yaml"
 #: The robot's current design (starts as the thesis design; ``pamkin optimize --apply`` replaces it).
 ROBOT_DESIGN = ROBOT_DIR / "data" / "pam_biped.yaml"
 DIAMETERS_MM = (10, 20, 40)
@@ -219,8 +222,9 @@ def resolve_design_path(design: str | os.PathLike | None = None) -> Path:
     """The design file a user argument names.
 
     Args:
-        design: ``None`` (the robot's current design ``robot/data/pam_biped.yaml``), the keyword
-            ``"thesis"`` (``robot/data/thesis_design.yaml``), a design file, or a run folder of
+        design: ``None`` (the robot's current design ``robot/data/pam_biped.yaml``), the keywords
+            ``"thesis"`` (``robot/data/thesis_design.yaml``) and ``"split_gluteal"``
+            (``robot/data/split_gluteal_design.yaml``), a design file, or a run folder of
             ``pamkin optimize`` (its ``design.yaml``).
 
     Raises:
@@ -230,6 +234,8 @@ def resolve_design_path(design: str | os.PathLike | None = None) -> Path:
         return ROBOT_DESIGN
     if str(design) == "thesis":
         return THESIS_DESIGN
+    if str(design) == "split_gluteal":
+        return SPLIT_GLUTEAL_DESIGN
     path = Path(design)
     if path.is_dir():
         if not (path / "design.yaml").is_file():

@@ -27,7 +27,7 @@ def add_parsers(sub) -> None:
                     "diameter and number of parallel PAMs, so that the PAM torque matches the torque of the "
                     "human muscles it replaces over the range of motion, within the PAMs' strain limits and "
                     "clear of the bone-shaft capsules (with limits.bone_mesh in CONFIG: of the real bone meshes, "
-                    "points within 12 mm of their bone; examples/optimize_v2.toml). Writes a run folder "
+                    "points within 18 mm of their bone; examples/optimize_v2.toml). Writes a run folder "
                     "(design.yaml, summary.json, log.txt, "
                     "before_after.png); --apply also writes the design into robot/data/pam_biped.yaml and "
                     "regenerates urdf/pam_biped.urdf (atomically; only when every actuator is feasible).")
@@ -45,7 +45,7 @@ def add_parsers(sub) -> None:
     s.add_argument("--warm-start", metavar="RUN",
                    help="run folder whose design.yaml seeds the routes (overrides the config; default: none)")
     s.add_argument("--design", metavar="DESIGN",
-                   help="seed design: a design file, a run folder or 'thesis' (overrides the config; default: "
+                   help="seed design: a design file, a run folder, 'thesis' or 'split_gluteal' (overrides the config; default: "
                         "the robot's design robot/data/pam_biped.yaml)")
     s.add_argument("--quiet", action="store_true", help="no progress lines on stderr (default: progress shown)")
     s.add_argument("--no-audit", action="store_true",
