@@ -34,7 +34,7 @@ from pamkin.paths import PathSet
 SEGMENT_CLEARANCE = 0.003
 #: Attachment points: distance from their own bone along its normal [m] (audit: 0 .. 20 mm).
 POINT_MIN = 0.003
-POINT_MAX = 0.012
+POINT_MAX = 0.018
 #: Segment samples nearer than this to a bone give a constraint [m].
 ACTIVATION = 0.010
 #: Spacing of the samples along a segment [m] (at its longest).

@@ -44,7 +44,7 @@ stays the fast 1-D/2-D fit) and ``examples/optimize_v2.toml`` switches the measu
     move_moving_points = true    # offset points that move with a coordinate (the patella) within the region
     rated_force = false          # (v2) force per PAM <= Festo's rated force and contraction <= Festo's maximum (0.25)
     one_segment = false          # (v2) the PAM (+ fittings) fits on one straight segment of its route
-    bone_mesh = false            # (v2) attachment points on their bone (3..12 mm out), segments clear of the
+    bone_mesh = false            # (v2) attachment points on their bone (3..18 mm out), segments clear of the
                                  #      real bone meshes at random, sweep and gait poses (optimize.bone_cuts)
     bone_rounds = 10             # (v2) largest number of re-linearisation rounds of the bone-mesh rows
     pam_clearance = false        # (v2, with bone_mesh) second pass: routes that hit another PAM's body are

@@ -66,7 +66,7 @@ def _point_segment_distance(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.n
 CUT_PENALTY = 3000.0
 #: Rows of the bone-mesh solver (unused rows are inactive): as many as optimize.bone_cuts.MAX_CUTS.
 CUT_SLOTS = 320
-#: The balls' slack is a squared length [m²]: scaled so that 1 mm outside a 12 mm ball costs ~1 mm of a row.
+#: The balls' slack is a squared length [m²]: scaled so that 1 mm outside an 18 mm ball costs ~1 mm of a row.
 BALL_PENALTY_SCALE = 40.0
 #: Largest constraint violation (in each row's own units: m, N, -) of a solution counted as feasible.
 FEASIBILITY_TOL = 1e-6
