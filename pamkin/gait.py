@@ -396,6 +396,10 @@ def plan_pressures(R: np.ndarray, a: np.ndarray, b: np.ndarray, moments: np.ndar
         H1 = G.T @ G
         q1 = G.T @ r0
         x1 = qpsolvers.solve_qp(H1, q1, lb=x_lo, ub=x_hi, solver=solver, initvals=x0, **opts)
+        if x1 is None and solver != "daqp":
+            # ProxQP occasionally stops without a solution on this positive semi-definite QP (seen on one
+            # frame in a few runs of the same data): the active-set DAQP on H1 + 1e-12 I solves it
+            x1 = qpsolvers.solve_qp(H1 + 1e-12 * np.eye(len(idx)), q1, lb=x_lo, ub=x_hi, solver="daqp")
         if x1 is None:
             raise SolverError(f"{solver}: residual QP failed at frame {i}")
         x1 = np.clip(x1, x_lo, x_hi)

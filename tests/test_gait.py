@@ -66,6 +66,24 @@ def test_toy_antagonist_by_hand(solver):
     assert m == pytest.approx(24.0, abs=1e-3)
 
 
+def test_proxqp_failure_falls_back_to_daqp(monkeypatch):
+    """ProxQP sometimes returns no solution of the residual QP (seen once in a few runs of the same frames):
+    the frame is solved again by DAQP, with the same result as DAQP alone (the toy's by-hand optimum)."""
+    import qpsolvers
+
+    real = qpsolvers.solve_qp
+    calls = []
+
+    def flaky(P, q, *args, solver=None, **kw):
+        calls.append(solver)
+        return None if solver == "proxqp" and len(calls) == 1 else real(P, q, *args, solver=solver, **kw)
+
+    monkeypatch.setattr(qpsolvers, "solve_qp", flaky)
+    P, m = _toy(20.0, "proxqp")
+    assert calls[:2] == ["proxqp", "daqp"]
+    assert P[0] == pytest.approx(27 / 31 * PMAX, abs=20) and m == pytest.approx(20.0, abs=1e-6)
+
+
 def test_toy_dead_pam_is_left_out():
     b = B_TOY.copy()
     b[0, 1] = 0.0            # the extensor is slack even at P_max: 0 Pa, no force
