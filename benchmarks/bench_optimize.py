@@ -1,7 +1,8 @@
-"""Benchmark: the default attachment-point optimisation of all 27 actuators on the built-in data.
+"""Benchmark: the default attachment-point optimisation (every actuator of the seed design) on the built-in data.
 
-Goals: the default run in under 5 minutes (issue 6) and under 10 minutes for the optimiser-v2 goals on
-this 2-core machine. Prints wall time, the solve time, the before/after summary (from the run's
+Goal: the default run (the optimiser-v2 defaults since stop 16) in under 10 minutes on this 2-core machine
+(issue 12; issue 6 asked < 5 minutes of the earlier fast fit, which ``--config examples/optimize_fast.toml``
+still runs). Prints wall time, the solve time, the before/after summary (from the run's
 summary.json) and the audit figures of the result (``pamkin audit``, full unless --quick-audit).
 
 Usage: python benchmarks/bench_optimize.py [--config run.toml] [--out DIR]
@@ -18,7 +19,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-GOAL_SECONDS = 300.0
+GOAL_SECONDS = 600.0
 
 
 def main() -> int:

@@ -2,29 +2,31 @@
 
 Example (every key optional; these are the defaults). The keys marked (v2) are the ingredients of an
 optimiser judged by ``pamkin audit`` (multi-joint training poses, the whole torque vector, Festo's rated
-force, a mass penalty, one straight segment); they are off by default (the default run
-stays the fast 1-D/2-D fit) and ``examples/optimize_v2.toml`` switches the measured set on::
+force, a mass penalty, the real bone meshes, a unit budget); the default run uses the measured set of
+them (``one_segment`` and ``pam_clearance`` stay off, README "Optimiser v2"). :data:`FAST_FIT` holds the
+earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
 
-    design = ""                  # design file to start from; "" = built-in robot/data/pam_biped.yaml
+    design = "split_gluteal"     # seed design file, run folder or keyword ("thesis", "split_gluteal");
+                                 # "" = the robot's design robot/data/pam_biped.yaml
     actuators = []               # actuator ids; [] = all
     warm_start = ""              # run folder whose design.yaml seeds the routes
     pressure_Pa = 620000.0
     force_model = "v3"
     diameters_mm = [10, 20, 40]  # outer loop
     max_parallel = 3             # outer loop: 1..max_parallel PAMs on the route
-    multistart = 2               # extra solves from perturbed seeds (kept if better) ...
+    multistart = 1               # extra solves from perturbed seeds (kept if better) ...
     multistart_threshold = 0.001 # ... when the best objective is above this (NRMSE ~ 3 %)
     seed = 0                     # random seed of the perturbations
     workers = 2                  # processes (actuators are independent problems)
     max_iter = 400               # IPOPT iterations per solve
-    max_solve_seconds = 0.0      # IPOPT CPU-time limit per solve [s] (0: none); a solve that hits it is
+    max_solve_seconds = 20.0     # IPOPT CPU-time limit per solve [s] (0: none); a solve that hits it is
                                  # treated as failed (infeasible diameter / parallel count tries end sooner)
 
     [samples]
     primary = 25                 # 1-D sweep of the primary coordinate (others 0)
     secondary = 7                # per axis of each 2-D grid primary x secondary
     constraint = 5               # per axis of the full grid over primary + secondaries (strain limits)
-    random = 0                   # (v2) multi-joint training poses per actuator (own random stream, never the audit's)
+    random = 30                  # (v2) multi-joint training poses per actuator (own random stream, never the audit's)
     gait = false                 # (v2) also train on the walking trial (between its frames; both legs, mirrored)
 
     [weights]
@@ -32,7 +34,7 @@ stays the fast 1-D/2-D fit) and ``examples/optimize_v2.toml`` switches the measu
     secondary = 0.5
     regularization = 0.001       # pull towards the seed route, per (region size)^2
     whole_vector = 1.0           # (v2) torque error about every coordinate crossed, on the training poses
-    mass = 0.0                   # (v2) outer loop: objective penalty per kg of PAM (diameter, parallel count)
+    mass = 0.02                  # (v2) outer loop: objective penalty per kg of PAM (diameter, parallel count)
 
     [limits]
     region_m = 0.05              # half-width of every route point's box around its seed [m]
@@ -42,14 +44,14 @@ stays the fast 1-D/2-D fit) and ``examples/optimize_v2.toml`` switches the measu
     pretension_scale = 1.0       # stretch limit = pretension_scale * Festo's limit
     fix_lengths = false          # keep the seed resting and tendon lengths (move attachment points only)
     move_moving_points = true    # offset points that move with a coordinate (the patella) within the region
-    rated_force = false          # (v2) force per PAM <= Festo's rated force and contraction <= Festo's maximum (0.25)
+    rated_force = true           # (v2) force per PAM <= Festo's rated force and contraction <= Festo's maximum (0.25)
     one_segment = false          # (v2) the PAM (+ fittings) fits on one straight segment of its route
-    bone_mesh = false            # (v2) attachment points on their bone (3..18 mm out), segments clear of the
+    bone_mesh = true             # (v2) attachment points on their bone (3..18 mm out), segments clear of the
                                  #      real bone meshes at random, sweep and gait poses (optimize.bone_cuts)
     bone_rounds = 10             # (v2) largest number of re-linearisation rounds of the bone-mesh rows
     pam_clearance = false        # (v2, with bone_mesh) second pass: routes that hit another PAM's body are
                                  #      solved again with the first-pass bodies as obstacles
-    max_units = 0                # (v2) PAM units of the whole robot (both sides; 0: no limit): the diameter
+    max_units = 60               # (v2) PAM units of the whole robot (both sides; 0: no limit): the diameter
                                  #      and parallel count of every actuator are chosen together, before the
                                  #      bone-mesh rounds, for the least summed score within this budget
 
@@ -89,33 +91,39 @@ def _is_number(v) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
 
+#: The earlier default (before the v2 ingredients were switched on): the 1-D/2-D fit of the robot's
+#: current design, capsule bone clearance, no unit budget. ``RunConfig(**FAST_FIT)``.
+FAST_FIT: dict = {"design": "", "multistart": 2, "max_solve_seconds": 0.0, "n_random": 0, "weight_mass": 0.0,
+                  "rated_force": False, "bone_mesh": False, "max_units": 0}
+
+
 @dataclass
 class RunConfig:
     """An optimisation run (see the module docstring for the TOML form and defaults)."""
 
-    design: str = ""
+    design: str = "split_gluteal"
     actuators: list[int] = field(default_factory=list)
     warm_start: str = ""
     pressure_Pa: float = 620e3
     force_model: str = "v3"
     diameters_mm: list[int] = field(default_factory=lambda: [10, 20, 40])
     max_parallel: int = 3
-    multistart: int = 2
+    multistart: int = 1
     multistart_threshold: float = 1e-3
     seed: int = 0
     workers: int = 2
     max_iter: int = 400
-    max_solve_seconds: float = 0.0
+    max_solve_seconds: float = 20.0
     n_primary: int = 25
     n_secondary: int = 7
     n_constraint: int = 5
-    n_random: int = 0
+    n_random: int = 30
     gait_samples: bool = False
     weight_primary: float = 1.0
     weight_secondary: float = 0.5
     regularization: float = 1e-3
     weight_whole_vector: float = 1.0
-    weight_mass: float = 0.0
+    weight_mass: float = 0.02
     region_m: float = 0.05
     min_point_distance_m: float = 0.01
     bone_clearance: bool = True
@@ -123,12 +131,12 @@ class RunConfig:
     pretension_scale: float = 1.0
     fix_lengths: bool = False
     move_moving_points: bool = True
-    rated_force: bool = False
+    rated_force: bool = True
     one_segment: bool = False
-    bone_mesh: bool = False
+    bone_mesh: bool = True
     bone_rounds: int = 10
     pam_clearance: bool = False
-    max_units: int = 0
+    max_units: int = 60
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     source: str = ""
 

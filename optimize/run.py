@@ -530,6 +530,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         summary["bone_mesh"] = bone
         summary["bone_mesh_not_clear"] = [f"{r.id} {r.name}: {bone_line(r.bone)}" for r in results
                                           if r.bone and not r.bone["clear"]]
+        summary["all_clear_bone"] = not summary["bone_mesh_not_clear"]    # the meshes replace the capsules
     summary["solve_seconds"] = round(solve_seconds, 1)
     summary["total_seconds"] = round(time.perf_counter() - t0, 1)
     save_design(new, out_dir / "design.yaml", _run_header(out_dir, cfg))

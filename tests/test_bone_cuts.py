@@ -13,7 +13,7 @@ import pamkin
 from pamkin.bones import BoneSet
 from pamkin.design import Design, Pam
 from pamkin.optimize.bone_cuts import POINT_MAX, POINT_MIN, BoneCuts, bone_stage
-from pamkin.optimize.config import RunConfig
+from pamkin.optimize.config import FAST_FIT, RunConfig
 from pamkin.optimize.problem import ActuatorProblem
 from pamkin.optimize.samples import actuator_data
 from pamkin.osim import PathPoint
@@ -69,7 +69,7 @@ def test_mesh_rows_keep_a_toy_route_out_of_a_toy_mesh():
     def target(q):
         return seed_robot.evaluate(q).torques[:, 0, :]
 
-    cfg = RunConfig(regularization=0.0, bone_clearance=False, n_primary=21, bone_mesh=True,
+    cfg = RunConfig(**{**FAST_FIT, "bone_mesh": True}, regularization=0.0, bone_clearance=False, n_primary=21,
                     regions={"1": [0.06, 0.06, 0.0]})
     data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
     seed_points = [np.array(p.location) for p in seed.points]
@@ -134,7 +134,7 @@ def test_pam_rows_move_a_toy_route_off_another_pam_body():
     def target(q):
         return seed_robot.evaluate(q).torques[:, 0, :]
 
-    cfg = RunConfig(regularization=0.0, bone_clearance=False, n_primary=21, bone_mesh=True,
+    cfg = RunConfig(**{**FAST_FIT, "bone_mesh": True}, regularization=0.0, bone_clearance=False, n_primary=21,
                     regions={"1": [0.05, 0.05, 0.05]})
     data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
     seed_points = [np.array(p.location) for p in seed.points]

@@ -25,12 +25,17 @@ def add_parsers(sub) -> None:
         description="Solve one CasADi/IPOPT problem per actuator (in parallel): route points within boxes "
                     "around the seed design's, resting and tendon lengths, with an outer loop over Festo "
                     "diameter and number of parallel PAMs, so that the PAM torque matches the torque of the "
-                    "human muscles it replaces over the range of motion, within the PAMs' strain limits and "
-                    "clear of the bone-shaft capsules (with limits.bone_mesh in CONFIG: of the real bone meshes, "
-                    "points within 18 mm of their bone; examples/optimize_v2.toml). Writes a run folder "
-                    "(design.yaml, summary.json, log.txt, "
-                    "before_after.png); --apply also writes the design into robot/data/pam_biped.yaml and "
-                    "regenerates urdf/pam_biped.urdf (atomically; only when every actuator is feasible).")
+                    "human muscles it replaces, about every coordinate the route or the muscles cross, on "
+                    "1-D sweeps, 2-D grids and multi-joint training poses, within the PAMs' strain limits and "
+                    "Festo's rated force and 25 percent contraction. Defaults (optimize/config.py): the "
+                    "split-gluteal seed design (28 actuators), a 60-unit budget over diameters and parallel "
+                    "counts, then the real bone meshes (points 3-18 mm outside their bone, segments clear "
+                    "of every bone at random, sweep and gait poses); about 6 minutes on 2 cores. "
+                    "examples/optimize_fast.toml is the earlier 2.5-minute fit. Writes a run folder "
+                    "(design.yaml, summary.json, log.txt, before_after.png) and audits the result next to "
+                    "the thesis design (pamkin audit --quick); --apply also writes the design into "
+                    "robot/data/pam_biped.yaml and regenerates urdf/pam_biped.urdf (atomically; only when "
+                    "every actuator is feasible).")
     s.add_argument("config", nargs="?", metavar="CONFIG",
                    help="TOML run description; every key optional, documented with its default in "
                         "optimize/config.py (pamkin.optimize.config) (default: all defaults)")
@@ -39,14 +44,14 @@ def add_parsers(sub) -> None:
                    help="also write the result into robot/data/pam_biped.yaml and urdf/pam_biped.urdf "
                         "(default: off; only when every actuator is feasible)")
     s.add_argument("--actuators", metavar="IDS",
-                   help="comma-separated actuator ids, e.g. 4,5,6 (overrides the config; default: all 27)")
+                   help="comma-separated actuator ids, e.g. 4,5,6 (overrides the config; default: all of the seed design)")
     s.add_argument("--workers", type=positive_int, metavar="N",
                    help="worker processes, >= 1 (overrides the config; default: the config's, 2)")
     s.add_argument("--warm-start", metavar="RUN",
                    help="run folder whose design.yaml seeds the routes (overrides the config; default: none)")
     s.add_argument("--design", metavar="DESIGN",
                    help="seed design: a design file, a run folder, 'thesis' or 'split_gluteal' (overrides the config; default: "
-                        "the robot's design robot/data/pam_biped.yaml)")
+                        "the config's, 'split_gluteal')")
     s.add_argument("--quiet", action="store_true", help="no progress lines on stderr (default: progress shown)")
     s.add_argument("--no-audit", action="store_true",
                    help="skip the final `pamkin audit --quick` of the result and of the thesis design "
@@ -115,7 +120,10 @@ primary coordinate's 1-D sweep (81 samples, independent numpy check; the progres
 is the optimiser's own, on its coarser samples), before = seed design, after = optimised; 2-D = NRMSE
 on the grid primary x first secondary coordinate (- : none); sign = fraction of samples where robot
 and human torque agree in sign; dead = fraction of the constraint grid outside the PAM's strain range;
-clear = smallest bone clearance beyond the PAM radius [mm]."""
+"""
+CAPSULE_LEGEND = "clear = smallest clearance of the bone-shaft capsules beyond the PAM radius [mm]."
+MESH_LEGEND = ("into bone = deepest route segment into any bone mesh at the bone-check poses [mm];\n"
+               "* = not clear (a segment into bone, or a point not within 0..20 mm of its bone: listed above).")
 
 
 def print_summary(summary: dict, out: Path, audit_text: str | None = None) -> None:
@@ -123,16 +131,22 @@ def print_summary(summary: dict, out: Path, audit_text: str | None = None) -> No
     rows = summary["actuators"]
     w = max([len(a["name"]) for a in rows] + [3])
     print(f"\nRun folder {out} ({summary['total_seconds']} s)")
+    mesh = summary.get("bone_mesh")
     print(f"{'id':>3} {'PAM':{w}s} {'d x n':>6} {'rest m':>7} {'tendon m':>8} {'NRMSE before':>12} "
-          f"{'after':>6} {'2-D':>6} {'sign':>5} {'dead':>5} {'clear mm':>8}")
+          f"{'after':>6} {'2-D':>6} {'sign':>5} {'dead':>5} {'into bone mm' if mesh else 'clear mm':>8}")
     for a in rows:
         two = "-" if a["nrmse_2d_after"] is None else f"{a['nrmse_2d_after']:.3f}"
         dn = f"{a['diameter_mm']}x{a['n_parallel']}"
+        if mesh:
+            b = mesh.get(str(a["id"]))
+            last = "-" if b is None else f"{b['max_segment_penetration_mm']:.1f}" + ("" if b["clear"] else " *")
+            last = f"{last:>12}"
+        else:
+            last = f"{1000 * a['min_bone_clearance_m']:8.1f}"
         print(f"{a['id']:3d} {a['name']:{w}s} {dn:>6} "
               f"{a['resting_length_m']:7.3f} {a['tendon_length_m']:8.3f} {a['nrmse_before']:12.3f} "
-              f"{a['nrmse_after']:6.3f} {two:>6} {a['sign_agreement']:5.2f} {a['dead_zone_fraction']:5.2f} "
-              f"{1000 * a['min_bone_clearance_m']:8.1f}")
-    print(LEGEND)
+              f"{a['nrmse_after']:6.3f} {two:>6} {a['sign_agreement']:5.2f} {a['dead_zone_fraction']:5.2f} {last}")
+    print(LEGEND + (MESH_LEGEND if mesh else CAPSULE_LEGEND))
     print(f"median NRMSE {summary['median_nrmse_before']:.3f} -> {summary['median_nrmse_after']:.3f}; "
           f"{summary['n_within_0.20_after']} of {len(rows)} within 0.20; "
           f"{summary['n_halved']} halved; all buildable: {summary['all_buildable']}; "
