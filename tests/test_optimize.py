@@ -371,3 +371,15 @@ def test_unit_budget_config_errors(tmp_path):
     with pytest.raises(DataFileError, match=r"limits.max_units: 40 PAM units cannot hold one PAM per actuator.*"
                                             r"the 2 optimised actuators need 4 and the others keep 50"):
         load_config(f).check_design(load_design())
+
+
+def test_example_configs_are_the_default_and_the_fast_fit():
+    """examples/optimize_v2.toml spells out the defaults; examples/optimize_fast.toml is FAST_FIT."""
+    import dataclasses
+
+    root = Path(__file__).resolve().parents[1] / "examples"
+    for path, expected in ((root / "optimize_v2.toml", RunConfig()), (root / "optimize_fast.toml", RunConfig(**FAST_FIT))):
+        cfg = load_config(path)
+        diff = [f.name for f in dataclasses.fields(cfg) if f.name != "source"
+                and getattr(cfg, f.name) != getattr(expected, f.name)]
+        assert diff == [], (path.name, diff)
