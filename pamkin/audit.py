@@ -489,10 +489,10 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
         row["mass_kg"] = float(festo.pam_mass(p.resting_length_m, p.diameter_mm)) * p.n_parallel
 
     # ---- gait capability
-    gait_frac = None
+    gait_frac, gait_limiting = None, None
     if opt.gait_plan and opt.gait_ik:
         say("gait pressure plan")
-        gait_frac = _gait_fraction(des, thr, opt.gait_ik)
+        gait_frac, gait_limiting = _gait_fraction(des, thr, opt.gait_ik)
 
     # ---- summary
     def count(pred) -> int:
@@ -534,6 +534,7 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
         "air_volume_l": volume * 1000.0,
         "mass_kg": float(mass),
         "gait_feasible_frame_fraction": gait_frac,
+        "gait_limiting_coordinates": gait_limiting,
     }
     criteria = []
     for name, lim_ in lim["limits"].items():
@@ -760,12 +761,16 @@ def _clearance(robot: PamRobot, des: Design, kin_state: dict, pam_state: dict, m
     return pairs, pairs_lr, caps
 
 
-def _gait_fraction(des: Design, thr: dict, ik: str) -> float:
-    """Feasible-frame fraction of the gait pressure plan (:func:`pamkin.gait.feasible_frame_fraction`)."""
-    from .gait import feasible_frame_fraction  # noqa: PLC0415
+def _gait_fraction(des: Design, thr: dict, ik: str) -> tuple[float, dict[str, float]]:
+    """Feasible-frame fraction of the gait pressure plan (as :func:`pamkin.gait.feasible_frame_fraction`)
+    and the limiting coordinates: {coordinate: fraction of frames within tolerance} where below 1,
+    worst first."""
+    from .gait import gait_plan  # noqa: PLC0415
 
-    return float(feasible_frame_fraction(PamRobot(des, robot_skeleton()), ik=ik,
-                                         tolerance=thr["gait_residual_pct"] / 100.0))
+    plan = gait_plan(PamRobot(des, robot_skeleton()), ik=ik, grf=None, tolerance=thr["gait_residual_pct"] / 100.0)
+    limiting = sorted(((c.within_tolerance_fraction, c.name) for c in plan.coordinate_results
+                       if c.within_tolerance_fraction < 1.0))
+    return float(plan.feasible_frame_fraction), {name: float(f) for f, name in limiting}
 
 
 __all__ = ["AUDIT_STREAM", "AuditOptions", "AuditResult", "audit_design", "audit_coordinates", "gait_poses",

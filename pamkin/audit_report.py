@@ -74,6 +74,9 @@ def scorecard_text(res) -> str:
               f"max bracket {_fmt(1000 * sm['max_bracket_m'])} mm, max force ratio {_fmt(sm['max_force_ratio'])}, "
               f"total PAM length {_fmt(sm['total_pam_length_m'])} m, air {_fmt(sm['air_volume_l'])} l, "
               f"mass {_fmt(sm['mass_kg'])} kg (assumed Festo weights)",
+              *([f"gait: frames within {thr['gait_residual_pct']:g} % per limiting coordinate: " +
+                 ", ".join(f"{c} {100 * f:.0f} %" for c, f in sm["gait_limiting_coordinates"].items())]
+                if sm.get("gait_limiting_coordinates") else []),
               f"thresholds: {json.dumps(thr)}",
               f"{'PASSED' if res.passed else 'FAILED'}: {len(res.failed)} of "
               f"{sum(1 for c in res.criteria if c['passed'] is not None)} limits failed"

@@ -213,3 +213,23 @@ def test_thesis_design_matches_the_independent_measurement():
     assert 14 <= s["segments_over_2mm"] <= 24          # issue: 18 (sampling of poses and segments)
     assert s["pams_negative_tendon"] == 7              # thesis Size() fallback (README defect)
     assert not res.passed
+
+
+@pytest.mark.skipif(not __import__("pamkin.audit", fromlist=["GAIT_IK"]).GAIT_IK.is_file(),
+                    reason="walking trial (../shared/gait) not available")
+def test_gait_criterion_names_the_limiting_coordinates():
+    """The audit's gait criterion is `pamkin gait`'s feasible-frame fraction, and it names the coordinates
+    that limit it (fraction of frames each is within 5 %), worst first, in the summary and the scorecard."""
+    from pamkin import gait
+    from pamkin.audit import GAIT_IK
+    from pamkin.audit_report import scorecard_text
+
+    opts = AuditOptions(**{**SMALL, "gait_ik": str(GAIT_IK), "gait_plan": True, "gait_stride": 10})
+    res = audit_design("thesis", options=opts)
+    plan = gait.gait_plan("thesis")
+    assert res.summary["gait_feasible_frame_fraction"] == pytest.approx(plan.feasible_frame_fraction, abs=1e-12)
+    lim = res.summary["gait_limiting_coordinates"]
+    expected = {c.name: c.within_tolerance_fraction for c in plan.coordinate_results if c.within_tolerance_fraction < 1}
+    assert lim == pytest.approx(expected) and list(lim) == sorted(lim, key=lim.get)
+    assert next(iter(lim)) == "hip_adduction_l"          # 60 % of the frames (thesis design)
+    assert "gait: frames within 5 % per limiting coordinate: hip_adduction_l 60 %" in scorecard_text(res)

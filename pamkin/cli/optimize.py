@@ -110,8 +110,11 @@ def audit_side_by_side(out: Path, stream) -> str:
     atomic_write(out / "audit.json", json.dumps(res.to_dict(), indent=1, default=float))
     atomic_write(out / "audit_thesis.json", json.dumps(thesis.to_dict(), indent=1, default=float))
     atomic_write(out / "scorecard.txt", scorecard_text(res))
+    lim = res.summary.get("gait_limiting_coordinates") or {}
+    gait_line = ("Gait frames limited by (fraction within the tolerance, this run): "
+                 + ", ".join(f"{c} {100 * f:.0f} %" for c, f in lim.items()) + "\n") if lim else ""
     return ("\nAudit on held-out samples (pamkin audit --quick; full: pamkin audit " + str(out) +
-            " and pamkin audit thesis):\n" + side_by_side([thesis, res], ["thesis design", "this run"]))
+            " and pamkin audit thesis):\n" + side_by_side([thesis, res], ["thesis design", "this run"]) + gait_line)
 
 LEGEND = """\
 Columns: id = actuator; PAM = its name; d x n = Festo diameter [mm] x PAMs in parallel; rest = resting
