@@ -148,7 +148,9 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
     lines: list[str] = []
     before = best
     best, measure, info = bone_stage(prob, best, cuts, cfg.bone_rounds, lines)
-    return best, _bone_info(cuts, before, measure, info, lines, [p.name for p in pam.points])
+    bone = _bone_info(cuts, before, measure, info, lines, [p.name for p in pam.points])
+    bone.update(objective_before=float(before.objective), objective_after=float(best.objective))
+    return best, bone
 
 
 def _finish_actuator(k: int) -> ActuatorResult:
@@ -313,6 +315,27 @@ def clearance_pass(seed: Design, results: list[ActuatorResult], cfg: RunConfig, 
         for j, k in enumerate(todo):
             out[k] = _clear_actuator(k)
             _progress(j + 1, len(todo), out[k], stream)
+    return out
+
+
+#: The run names actuators whose fit objective the bone-mesh rounds raise by more than this factor.
+FIT_COST_FACTOR = 3.0
+
+
+def fit_cost_lines(results: list[ActuatorResult]) -> list[str]:
+    """One line per actuator whose fit the bone-mesh rounds made much worse (objective × > FIT_COST_FACTOR
+    and above 0.01, about NRMSE 0.1): the price of keeping the route on and clear of the bones."""
+    out = []
+    for r in results:
+        b = r.bone or {}
+        j0, j1 = b.get("objective_before"), b.get("objective_after")
+        if j0 is None or j1 is None or j1 <= 0.01 or j1 <= FIT_COST_FACTOR * max(j0, 1e-12):
+            continue
+        far = {k: v for k, v in b.get("before", {}).get("point_distance_mm", {}).items() if v > 20}
+        why = ("; its fitted route had points " + ", ".join(f"{k} {v:.0f} mm" for k, v in far.items())
+               + " from bone") if far else ""
+        out.append(f"actuator {r.id} {r.name}: keeping the route on and clear of bone raised the fit objective "
+                   f"{j0:.3g} -> {j1:.3g} (x{j1 / max(j0, 1e-12):.0f}){why}")
     return out
 
 
@@ -523,6 +546,9 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
     for r in results:
         if r.bone and not r.bone["clear"]:
             print(f"bone-mesh: actuator {r.id} {r.name}: {bone_line(r.bone)}", file=stream, flush=True)
+    costly = fit_cost_lines(results)
+    for line in costly:
+        print(f"bone-mesh: {line}", file=stream, flush=True)
     print("solving done; checking every actuator on dense grids (numpy pipeline) ...", file=stream, flush=True)
     summary = summarize(seed, new, results, cfg, progress=_check_progress(stream))
     bone = {str(r.id): {k: v for k, v in r.bone.items() if k != "log"} for r in results if r.bone}
@@ -531,6 +557,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         summary["bone_mesh_not_clear"] = [f"{r.id} {r.name}: {bone_line(r.bone)}" for r in results
                                           if r.bone and not r.bone["clear"]]
         summary["all_clear_bone"] = not summary["bone_mesh_not_clear"]    # the meshes replace the capsules
+        summary["bone_mesh_fit_cost"] = costly
     summary["solve_seconds"] = round(solve_seconds, 1)
     summary["total_seconds"] = round(time.perf_counter() - t0, 1)
     save_design(new, out_dir / "design.yaml", _run_header(out_dir, cfg))

@@ -202,6 +202,7 @@ def test_default_run_on_the_hip_group(tmp_path):
                 d = float(bones.body_closest(pt.body, np.array([pt.location]))[0][0])
                 assert 0.0 <= d <= 0.020, (p.name, pt.name, d)
     assert gait.feasible_frame_fraction(PamRobot(design, skel)) >= 0.85      # measured 0.91
+    assert any(line.startswith("actuator 24 Gluteus maximus: keeping the route") for line in s["bone_mesh_fit_cost"])
 
 
 def test_optimize_cli_one_actuator(tmp_path, capsys):
@@ -383,3 +384,17 @@ def test_example_configs_are_the_default_and_the_fast_fit():
         diff = [f.name for f in dataclasses.fields(cfg) if f.name != "source"
                 and getattr(cfg, f.name) != getattr(expected, f.name)]
         assert diff == [], (path.name, diff)
+
+
+def test_fit_cost_of_the_bone_rounds_is_named():
+    """The run names actuators whose fit the bone-mesh rounds made > 3x worse, with the far points."""
+    r1 = _fake_result(24, {})
+    r1.bone = {"objective_before": 0.03, "objective_after": 0.6,
+               "before": {"point_distance_mm": {"p1": 12.0, "p2": 38.7, "p4": 53.6}}}
+    r2 = _fake_result(25, {})
+    r2.bone = {"objective_before": 0.03, "objective_after": 0.08, "before": {"point_distance_mm": {}}}
+    r3 = _fake_result(26, {})
+    r3.bone = {"objective_before": 0.001, "objective_after": 0.009, "before": {"point_distance_mm": {}}}
+    lines = run_mod.fit_cost_lines([r1, r2, r3, _fake_result(27, {})])
+    assert lines == ["actuator 24 Gluteal group: keeping the route on and clear of bone raised the fit objective "
+                     "0.03 -> 0.6 (x20); its fitted route had points p2 39 mm, p4 54 mm from bone"]
