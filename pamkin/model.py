@@ -38,6 +38,9 @@ class Model:
     lengths; their moment arms are central differences −(L(q + h) − L(q − h)) / 2h of those lengths
     (h = :attr:`WRAP_STEP`, dependent coordinates following their couplers), which is what OpenSim's
     lengths imply (OpenSim's own ``computeMomentArm`` differs by up to centimetres with wrapping).
+    The compiled engine evaluates them in one pass (:mod:`pamkin.fastwrap`: straight segments
+    exactly, only the wrapped segment, or a multi-wrap path, differenced along the point velocities);
+    the numpy engine re-evaluates the kinematics at q ± h.
 
     Attributes:
         osim: The imported model description.
@@ -86,6 +89,13 @@ class Model:
                 self._fast = None
         elif engine != "numpy":
             raise ValueError(f"engine must be 'compiled' or 'numpy', not {engine!r}")
+        self._fastwrap = None
+        if self._fast is not None and self.wrapping is not None and self.wrapping.compiled:
+            from .fastwrap import FastWrapped  # noqa: PLC0415
+
+            # one compiled pass: kinematics, straight and wrapped paths, wrapped moment arms
+            self._fastwrap = FastWrapped(self._fast, self.wrapping, self._wpairs, self.kinematics.root_of,
+                                         self.WRAP_STEP)
         kinds = [m.kind for m in osim.muscles]
         self._unsupported_force = [m for m in osim.muscles if m.kind not in FORCE_CLASSES]
         self._thelen_cols = [i for i, k in enumerate(kinds) if k == "Thelen2003Muscle"]
@@ -164,6 +174,22 @@ class Model:
             R[:, ks] = -(Lp - Lm) / (2 * h)
         return PathResult(L, self._wpairs, R)
 
+    def _with_fast_wrapping(self, q: np.ndarray, res: PathResult, Lw: np.ndarray, Rp: np.ndarray | None,
+                            moment_arms: bool) -> PathResult:
+        """:meth:`_with_wrapping` for the compiled pass (:class:`pamkin.fastwrap.FastWrapped`): wrapped
+        lengths ``Lw`` and partial moment arms ``Rp`` given, chained through the couplers."""
+        fw = self._fastwrap
+        L = res.lengths.copy()
+        L[:, self.wrapping.indices] = Lw
+        if not moment_arms:
+            return PathResult(L, self._wpairs, None)
+        R = np.zeros((len(q), len(self._wpairs)))
+        keep = ~self._wrapped_mask & (self._wpairs_src >= 0)
+        R[:, keep] = res.moment_arms[:, self._wpairs_src[keep]]
+        part = Rp * self.kinematics.dependent_derivatives(q)[:, fw.kp_coord] if self.kinematics.couplers else Rp
+        np.add.at(R.T, fw.kp_out, part.T)
+        return PathResult(L, self._wpairs, R)
+
     @property
     def pairs(self) -> np.ndarray:
         """(K, 2) (muscle, coordinate) pairs whose moment arms :meth:`path_result` returns: the spanned
@@ -226,7 +252,10 @@ class Model:
         Large batches are processed in chunks of ``chunk`` configurations (bounded memory).
         """
         q = self.kinematics.as_q(q)
-        if self._fast is not None:
+        Lw = Rp = None
+        if self._fastwrap is not None:
+            L, R, Lw, Rp = self._fastwrap.evaluate(q, moment_arms)
+        elif self._fast is not None:
             L, R = self._fast.evaluate(q, moment_arms)
         else:
             parts = [self.paths.evaluate(self.kinematics.forward(q[i:i + chunk], warn_range=False), moment_arms)
@@ -247,6 +276,8 @@ class Model:
             res = PathResult(L, self._pairs, out)
         if self.wrapping is None:
             return res
+        if Lw is not None:
+            return self._with_fast_wrapping(q, res, Lw, Rp, moment_arms)
         if len(q) <= chunk:
             return self._with_wrapping(q, res, moment_arms)
         parts = [self._with_wrapping(q[i:i + chunk], PathResult(

@@ -1276,6 +1276,29 @@ def _to_world(r, R, p):
 
 
 @njit(**_OPTS)
+def _t_to_local(x, R, p):
+    """:func:`_to_local` on tuples (the same operations)."""
+    d0, d1, d2 = x[0] - p[0], x[1] - p[1], x[2] - p[2]
+    return (d0 * R[0, 0] + d1 * R[1, 0] + d2 * R[2, 0], d0 * R[0, 1] + d1 * R[1, 1] + d2 * R[2, 1],
+            d0 * R[0, 2] + d1 * R[1, 2] + d2 * R[2, 2])
+
+
+@njit(**_OPTS)
+def _t_to_world(r, R, p):
+    """:func:`_to_world` on tuples (the same operations)."""
+    return (p[0] + (R[0, 0] * r[0] + R[0, 1] * r[1] + R[0, 2] * r[2]),
+            p[1] + (R[1, 0] * r[0] + R[1, 1] * r[1] + R[1, 2] * r[2]),
+            p[2] + (R[2, 0] * r[0] + R[2, 1] * r[1] + R[2, 2] * r[2]))
+
+
+@njit(**_OPTS)
+def _t_dist(a, b):
+    """|a − b| (the operations of ``_norm(a - b)``)."""
+    d0, d1, d2 = a[0] - b[0], a[1] - b[1], a[2] - b[2]
+    return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
+@njit(**_OPTS)
 def _frame(Rb, pb, R, t):
     """World pose (Rb R, pb + Rb t) of a frame (R, t) fixed in a body at (Rb, pb)."""
     out = np.empty((3, 3))
@@ -1483,19 +1506,32 @@ def _path_length(X, active, kinds, dims, methods, axes, signs, rstart, rend, act
     n = X.shape[0]
     nw = kinds.shape[0]
     cap = n + 2 * nw
-    path = np.empty(cap, dtype=np.int64)
+    scratch = (np.empty(cap, dtype=np.int64), np.zeros((cap, 3)), np.zeros((cap, 3)),
+               np.zeros(cap, dtype=np.bool_), np.zeros(cap), np.empty(nw, dtype=np.int64),
+               np.empty(nw, dtype=np.int64))
+    return _path_core(X, active, kinds, dims, methods, axes, signs, rstart, rend, actives, objs, Rw, pw,
+                      *scratch)[0]
+
+
+@njit(**_OPTS)
+def _path_core(X, active, kinds, dims, methods, axes, signs, rstart, rend, actives, objs, Rw, pw,
+               path, pos, cache, cached, surf, order, result):
+    """:func:`_path_length` on caller-owned scratch arrays (at least n + 2 nw entries; nw for ``order``,
+    ``result``): returns ``(length, npath)`` and leaves the final path in ``path[:npath]``, its entries'
+    positions in ``pos`` (tangent points: ``cache`` where ``cached``, the value the length used) and the
+    wrap lengths in ``surf``."""
+    n = X.shape[0]
+    nw = kinds.shape[0]
     npath = 0
     for i in range(n):
         if active[i]:
             path[npath] = i
             npath += 1
-    pos = np.zeros((cap, 3))
     pos[:n] = X
-    cache = np.zeros((cap, 3))
-    cached = np.zeros(cap, dtype=np.bool_)
-    surf = np.zeros(cap)
-    order = np.arange(nw)
-    result = np.zeros(nw, dtype=np.int64)
+    cached[:n + 2 * nw] = False
+    for k in range(nw):
+        order[k] = k
+        result[k] = NO_WRAP
     last = np.inf
     single = nw == 1
     n_iter = 1 if nw < 2 else 8
@@ -1512,40 +1548,47 @@ def _path_length(X, active, kinds, dims, methods, axes, signs, rstart, rend, act
             while jf <= we and not active[jf]:
                 jf += 1
             if jf > we:
-                return _length(path, npath, n, objs, pos, cache, cached, surf)
+                return _length(path, npath, n, objs, pos, cache, cached, surf), npath
             jr = we
             while jr >= ws and not active[jr]:
                 jr -= 1
             start, end = _index(path, npath, jf), _index(path, npath, jr)
             R, p = Rw[k], pw[k]
             best_pt = -1
-            best_r1 = np.zeros(3)
-            best_r2 = np.zeros(3)
+            best_r1 = _T0
+            best_r2 = _T0
             best_wl = 0.0
             min_change = np.inf
-            for pt1 in range(start, end):
+            for pt1 in range(start, end):     # (x, y, z) tuples: no heap allocation in this loop
                 e1, e2 = path[pt1], path[pt1 + 1]
                 if _same_object(e1, e2, n, objs):
                     continue
-                a = _to_local(pos[e1], R, p)
-                b = _to_local(pos[e2], R, p)
-                code, r1, r2, wl = _wrap_any(kinds[k], a, b, dims[k], methods[k], axes[k], signs[k], single)
+                a = _t_to_local(pos[e1], R, p)
+                b = _t_to_local(pos[e2], R, p)
+                if kinds[k] == CYLINDER:
+                    code, r1, r2, wl = _cylinder(a, b, dims[k][0], dims[k][1], axes[k], signs[k], single)
+                else:
+                    code, r1v, r2v, wl = _wrap_any(kinds[k], _vec(a[0], a[1], a[2]), _vec(b[0], b[1], b[2]),
+                                                   dims[k], methods[k], axes[k], signs[k], single)
+                    r1, r2 = (r1v[0], r1v[1], r1v[2]), (r2v[0], r2v[1], r2v[2])
                 result[i] = code
                 if code == MANDATORY_WRAP:
                     best_pt, best_r1, best_r2, best_wl = pt1, r1, r2, wl
                     break
                 if code == WRAPPED:
-                    g1, g2 = _to_world(r1, R, p), _to_world(r2, R, p)
+                    g1, g2 = _t_to_world(r1, R, p), _t_to_world(r2, R, p)
                     x1 = _ground(e1, n, pos, cache, cached)
                     x2 = _ground(e2, n, pos, cache, cached)
-                    change = _norm(g1 - x1) + wl + _norm(x2 - g2) - _norm(x2 - x1)
+                    change = _t_dist(g1, x1) + wl + _t_dist(x2, g2) - _t_dist(x2, x1)
                     if change < min_change:
                         best_pt, best_r1, best_r2, best_wl = pt1, r1, r2, wl
                         min_change = change
             if best_pt >= 0:
                 e = n + 2 * k
-                pos[e] = _to_world(best_r1, R, p)
-                pos[e + 1] = _to_world(best_r2, R, p)
+                g1, g2 = _t_to_world(best_r1, R, p), _t_to_world(best_r2, R, p)
+                for r in range(3):
+                    pos[e, r] = g1[r]
+                    pos[e + 1, r] = g2[r]
                 surf[e] = 0.0
                 surf[e + 1] = best_wl
                 for j in range(npath - 1, best_pt, -1):
@@ -1560,7 +1603,7 @@ def _path_length(X, active, kinds, dims, methods, axes, signs, rstart, rend, act
         if kk == 0 and nw > 1 and result[0] == NO_WRAP and result[1] == INSIDE_RADIUS:
             order[0], order[1] = 1, 0
             npath = _remove(path, npath, n)
-    return _length(path, npath, n, objs, pos, cache, cached, surf)
+    return _length(path, npath, n, objs, pos, cache, cached, surf), npath
 
 
 @njit(**_OPTS)

@@ -16,6 +16,7 @@ import yaml
 from opensim_ref import SHARED, opensim_reference
 
 import pamkin
+from pamkin.model import Model
 from pamkin.errors import OsimError, UnsupportedFeatureError
 from pamkin.osim import (
     SkippedComponentsWarning,
@@ -259,11 +260,41 @@ def test_compiled_loop_equals_python_loop(arm_path):
         assert np.array_equal(slow.wrapping.lengths(state), W.lengths(state))   # the loops agree exactly
         ref = slow.path_result(q)
         assert np.array_equal(ref.pairs, fast.pairs)
-        # round-off of the engines' kinematics (central differences divide it by 2e-6)
-        assert np.abs(ref.lengths - fast.lengths).max() < 1e-12
-        assert np.abs(ref.moment_arms - fast.moment_arms).max() < 1e-6
+        # round-off of the engines' kinematics, relative: the two-link arm's pathological sph_cyl path is 11 m long
+        # with 120 m moment arms (central differences divide the round-off by 2e-6)
+        assert (np.abs(ref.lengths - fast.lengths) / np.maximum(1.0, np.abs(ref.lengths))).max() < 1e-11
+        assert (np.abs(ref.moment_arms - fast.moment_arms) / np.maximum(1.0, np.abs(ref.moment_arms))).max() < 1e-6
         chunked = model.path_result(q, chunk=7)                          # bounded-memory chunks: same numbers
         assert np.array_equal(chunked.lengths, fast.lengths) and np.array_equal(chunked.moment_arms, fast.moment_arms)
+
+
+def test_compiled_moment_arms_equal_central_differences_of_the_lengths(arm_path):
+    """The compiled pass (:mod:`pamkin.fastwrap`: straight segments analytic, the wrapped segment or the
+    multi-wrap path differenced along the point and frame velocities) equals central differences of the
+    wrapped lengths about each coordinate, couplers included (Rajagopal's knees), on every wrap type."""
+    for path in (arm_path, ARM26, RAJAGOPAL):
+        model = _load(path)
+        assert model._fastwrap is not None
+        q = model.random_q(40, seed=7)
+        res = model.path_result(q)
+        W = model.wrapping
+        cols = {m: k for k, m in enumerate(W.indices)}
+        h = Model.WRAP_STEP
+        for c in sorted({int(c) for c in res.pairs[:, 1]}):
+            qp, qm = q.copy(), q.copy()
+            qp[:, c] += h
+            qm[:, c] -= h
+            Lp = model.lengths(model.kinematics.fill_dependent(qp))
+            Lm = model.lengths(model.kinematics.fill_dependent(qm))
+            for k in np.nonzero(res.pairs[:, 1] == c)[0]:
+                m = int(res.pairs[k, 0])
+                if m not in cols:
+                    continue
+                fd = -(Lp[:, m] - Lm[:, m]) / (2 * h)
+                err = np.abs(res.moment_arms[:, k] - fd) / np.maximum(1.0, np.abs(fd))
+                # away from wrap on/off switches (one sample in a few hundred straddles one at this step)
+                assert np.mean(err < 1e-7) >= 0.95, (path.name, model.muscles[m], model.coordinates[c], err.max())
+                assert np.median(err) < 1e-8
 
 
 def test_obstacle_wraps_and_bad_wrap_settings_are_refused(tmp_path):
