@@ -326,7 +326,7 @@ def bone_check_poses(model, rom, pam, seed: int, n_random: int = N_RANDOM,
     return np.vstack(blocks), len(q) + len(q1)
 
 
-def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None):
+def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start: bool = False):
     """Move a solved route clear of bone, and of the obstacle PAM bodies if :meth:`BoneCuts.set_obstacles`
     gave any (sequential linearisation with a trust region).
 
@@ -343,6 +343,9 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None):
         cuts: The actuator's :class:`BoneCuts`.
         rounds: Largest number of solves.
         log: Optional list receiving one line per round.
+        keep_start: ``sol`` is itself a candidate (a warm start: a route already through these rounds in
+            an earlier run): a round must lower the merit of ``sol`` to be accepted, and the result is
+            ``sol`` unless a round beats it.
 
     Returns:
         ``(solution, measure, rounds_info)``: the best accepted round — fewest bone violations
@@ -358,6 +361,9 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None):
     z[:3 * npt] = cuts.pull_in(np.array(sol.points)).ravel()    # points beyond the trust region pulled in
     merit = np.inf                   # accept the first round
     merit_violation = np.inf
+    if keep_start and sol.success:   # ... unless the start is a candidate itself
+        merit = sol.objective + MERIT_PENALTY * m0.violation(PAM_WEIGHT)
+        merit_violation = m0.violation()
     rho = TRUST_START
     for r in range(rounds):
         _, (W, w0) = cuts.measure(z[:3 * npt].reshape(npt, 3), with_rows=True)
@@ -380,7 +386,7 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None):
                        f"{'' if accept else ' (rejected)'}")
         if accept:
             key = (round(ms.violation(0.0), 5), round(ms.pam_overlap(), 4), s.objective)
-            if not best.success or best is sol or key < best_key:
+            if not best.success or (best is sol and not keep_start) or key < best_key:
                 best, best_m, best_key = s, ms, key
             step = float(np.max(np.abs(s.z[:3 * npt] - zc)))
             gain = (merit - m_new) / max(abs(merit), 1e-12) if np.isfinite(merit) else np.inf

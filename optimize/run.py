@@ -83,12 +83,13 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         return sol.objective + cfg.weight_mass * 2 * sol.n_parallel * float(festo.pam_mass(sol.rest_length,
                                                                                            sol.diameter_mm))
 
-    def attempt(d: int, n: int, points, rest, tendon, label: str, relax=frozenset()):
+    def attempt(d: int, n: int, points, rest, tendon, label: str, relax=frozenset(), evaluate: bool = False):
         nonlocal best
         if (d, relax) not in problems:
             problems[(d, relax)] = ActuatorProblem(data, cfg, d, seed, regions, relax)
         prob = problems[(d, relax)]
-        sol = prob.solve(prob.initial_guess(points, rest, tendon), n)
+        z0 = prob.initial_guess(points, rest, tendon)
+        sol = prob.evaluate(z0, n) if evaluate else prob.solve(z0, n)
         attempts.append({"diameter_mm": d, "n_parallel": n, "start": label, "status": sol.status,
                          "objective": sol.objective, "feasible": sol.success, "seconds": round(sol.seconds, 3),
                          "relaxed": sorted(relax)})
@@ -103,31 +104,44 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
             best_problem[0] = prob
         return sol
 
-    same_seed = (pam.diameter_mm, pam.n_parallel)
     relaxed: frozenset = frozenset()
-    results = {}
-    for d in cfg.diameters_mm:
-        warm = (pam.resting_length_m, pam.tendon_length_m) if (d, 1) == same_seed else (None, None)
-        results[(d, 1)] = attempt(d, 1, seed, *warm, "seed")
-    if cfg.one_segment and not any(s.success for s in results.values()):
-        # the PAM cannot sit on one straight segment of this route within the limits: say so, solve without
-        relaxed = frozenset({"one_segment"})
+    # warm start from a run folder: its diameter and count first; the full loop only if that fails. With
+    # the bone meshes, a warm route that meets this run's own constraints is taken as it is (it was cleared
+    # of bone in its run): the bone-mesh rounds then improve the fit from there, instead of from a fresh
+    # fit that the rounds would have to pull out of bone again.
+    warm_ok = False
+    if pam.id in _STATE.get("warm_ids", ()) and pam.diameter_mm in cfg.diameters_mm \
+            and pam.n_parallel <= cfg.max_parallel:
+        warm = (pam.diameter_mm, pam.n_parallel, seed, pam.resting_length_m, pam.tendon_length_m)
+        if cfg.bone_mesh:
+            warm_ok = attempt(*warm, "warm start (as given)", evaluate=True).success
+        if not warm_ok:
+            warm_ok = attempt(*warm, "warm start").success
+    if not warm_ok:
+        same_seed = (pam.diameter_mm, pam.n_parallel)
+        results = {}
         for d in cfg.diameters_mm:
-            results[(d, 1)] = attempt(d, 1, seed, None, None, "seed", relaxed)
-    feasible = {key: s for key, s in results.items() if s.success}
-    if feasible:
-        d_best = min(feasible, key=lambda key: score(feasible[key]))[0]
-        prev = feasible[(d_best, 1)]
-        for n in range(2, cfg.max_parallel + 1):
-            s = attempt(d_best, n, prev.points, prev.rest_length, prev.tendon_length, "seed", relaxed)
-            if not (s.success and score(s) < 0.95 * score(prev)):
-                break
-            prev = s
-    if best is not None and best.success and best.objective > cfg.multistart_threshold:
-        rng = np.random.default_rng(cfg.seed + 1000 * pam.id + seed_index)
-        for m in range(cfg.multistart):
-            pts = [p + rng.uniform(-0.5, 0.5, 3) * r for p, r in zip(best.points, regions)]
-            attempt(best.diameter_mm, best.n_parallel, pts, None, None, f"perturbed {m + 1}", relaxed)
+            warm = (pam.resting_length_m, pam.tendon_length_m) if (d, 1) == same_seed else (None, None)
+            results[(d, 1)] = attempt(d, 1, seed, *warm, "seed")
+        if cfg.one_segment and not any(s.success for s in results.values()):
+            # the PAM cannot sit on one straight segment of this route within the limits: say so, solve without
+            relaxed = frozenset({"one_segment"})
+            for d in cfg.diameters_mm:
+                results[(d, 1)] = attempt(d, 1, seed, None, None, "seed", relaxed)
+        feasible = {key: s for key, s in results.items() if s.success}
+        if feasible:
+            d_best = min(feasible, key=lambda key: score(feasible[key]))[0]
+            prev = feasible[(d_best, 1)]
+            for n in range(2, cfg.max_parallel + 1):
+                s = attempt(d_best, n, prev.points, prev.rest_length, prev.tendon_length, "seed", relaxed)
+                if not (s.success and score(s) < 0.95 * score(prev)):
+                    break
+                prev = s
+        if best is not None and best.success and best.objective > cfg.multistart_threshold:
+            rng = np.random.default_rng(cfg.seed + 1000 * pam.id + seed_index)
+            for m in range(cfg.multistart):
+                pts = [p + rng.uniform(-0.5, 0.5, 3) * r for p, r in zip(best.points, regions)]
+                attempt(best.diameter_mm, best.n_parallel, pts, None, None, f"perturbed {m + 1}", relaxed)
     assert best is not None
     if _STATE.get("fit_only"):        # unit budget: the bone-mesh rounds follow the global choice
         out = _result(pam, data, best_problem[0], best, attempts, t0, {})
@@ -138,7 +152,8 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
 
 
 def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
-    """The bone-mesh stage of a solved actuator (when ``cfg.bone_mesh``): (solution, bone info)."""
+    """The bone-mesh stage of a solved actuator (when ``cfg.bone_mesh``): (solution, bone info). A warm
+    start taken as given (already through these rounds in its run) stays unless a round beats it."""
     if not (cfg.bone_mesh and best.success):
         return best, {}
     from .bone_cuts import BoneCuts, bone_check_poses, bone_stage  # noqa: PLC0415
@@ -147,7 +162,7 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
                     *bone_check_poses(_STATE["human"], _STATE["rom"], pam, cfg.seed))
     lines: list[str] = []
     before = best
-    best, measure, info = bone_stage(prob, best, cuts, cfg.bone_rounds, lines)
+    best, measure, info = bone_stage(prob, best, cuts, cfg.bone_rounds, lines, keep_start=best.status == "given")
     bone = _bone_info(cuts, before, measure, info, lines, [p.name for p in pam.points])
     bone.update(objective_before=float(before.objective), objective_after=float(best.objective))
     return best, bone
@@ -514,11 +529,14 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
     skeleton = robot_skeleton()
     kw = {"bodies": skeleton.bodies, "coordinates": skeleton.coordinates}
     seed = load_design(cfg.design, **kw) if cfg.design else load_design(**kw)
+    warm_ids: set[int] = set()
     if cfg.warm_start:
         warm = load_design(Path(cfg.warm_start) / "design.yaml", **kw)
         for p in warm.pams:
             if p.id in {q.id for q in seed.pams}:
                 seed = seed.replace_pam(p)
+                warm_ids.add(p.id)
+    _STATE["warm_ids"] = warm_ids      # these actuators try their warm diameter and count first
     cfg.check_design(seed)
     seed = Design(seed.name, seed.pams, cfg.pressure_Pa, cfg.force_model, seed.fitting_length_m, seed.rom,
                   seed.description, seed.path, dict(seed.extra))

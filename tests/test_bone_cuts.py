@@ -103,6 +103,14 @@ def test_mesh_rows_keep_a_toy_route_out_of_a_toy_mesh():
     assert measure.violation() == 0.0
     assert best.objective <= 1.5 * sol.objective + 1e-3     # the fit stays close to the unconstrained one
 
+    # a warm start (the cleared route, taken as given): kept unless a round lowers its merit
+    start = prob.evaluate(best.z, 1)
+    again, m_again, _ = bone_stage(prob, start, cuts, rounds=8, keep_start=True)
+    assert m_again.violation() == 0.0 and again.objective <= start.objective + 1e-12
+    # a warm start in bone is still moved out of it
+    moved, m_moved, _ = bone_stage(prob, prob.evaluate(sol.z, 1), cuts, rounds=12, keep_start=True)
+    assert m_moved.violation() < 0.2 * before.violation()
+
 
 def test_bone_mesh_config_keys(tmp_path):
     from pamkin.errors import DataFileError

@@ -48,7 +48,8 @@ def add_parsers(sub) -> None:
     s.add_argument("--workers", type=positive_int, metavar="N",
                    help="worker processes, >= 1 (overrides the config; default: the config's, 2)")
     s.add_argument("--warm-start", metavar="RUN",
-                   help="run folder whose design.yaml seeds the routes (overrides the config; default: none)")
+                   help="run folder whose design.yaml seeds the routes and sizes; its diameters and parallel counts are "
+                        "tried first, the full loop only where they fail (overrides the config; default: none)")
     s.add_argument("--design", metavar="DESIGN",
                    help="seed design: a design file, a run folder, 'thesis' or 'split_gluteal' (overrides the config; default: "
                         "the config's, 'split_gluteal')")
