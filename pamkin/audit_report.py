@@ -175,6 +175,7 @@ def audit_view(res, path: str | os.PathLike, geometry_dir: str | None = None) ->
               f"their bone or farther than {1000 * thr['bracket_max_m']:.0f} mm from it ({bad_pts}); default pose")
     vis = meshcat.Visualizer(window=StaticWindow(f"pamkin audit {res.design}", header))
     vis["/Grid"].set_property("visible", False)
+    vis["/Axes"].set_property("visible", False)
     allpts = []
     for body in bones.bodies:
         if body.endswith("_l"):

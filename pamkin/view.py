@@ -157,7 +157,13 @@ body {{ margin: 0; font-family: sans-serif; }}
 {js}
 </script>
 <script>
-var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+var pane = document.getElementById("meshcat-pane");
+var viewer = new MeshCat.Viewer(pane);
+// meshcat sizes the canvas to the window's height; the pane is the window less the header
+function pamkin_fit() {{ viewer.set_3d_pane_size(pane.offsetWidth, pane.offsetHeight); }}
+window.addEventListener("resize", pamkin_fit, false);
+requestAnimationFrame(pamkin_fit);
+pamkin_fit();
 viewer.gui.close();
 viewer.gui.domElement.style.top = "{HEADER_PX}px";
 var pamkin_commands = [

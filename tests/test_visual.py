@@ -258,6 +258,9 @@ def test_page_renders_in_headless_chromium(human, robot, tmp_path):
     scene = img[HEADER_PX + 2:]                                   # below the page header (title, legend)
     background = (scene.astype(int).min(axis=-1) > 245)
     assert 1.0 - background.mean() > 0.04, "almost nothing rendered"
+    # the canvas is the pane (window less header), so the framed scene is whole: nothing at the pane's edges
+    # (meshcat alone sizes the canvas to the window height, which cut the feet off below the pane)
+    assert background[-6:].all() and background[:6, : int(0.65 * background.shape[1])].all()   # (right: controls)
     # human muscles are unlit (MeshBasicMaterial): their exact colours appear, mostly on the left half
     # (thin blue PAMs on the right may match a few of them)
     muscles = _near(scene, view.human_rgb[0], 6)
