@@ -298,6 +298,19 @@ if numba is not None:
                         R_out[t, k] = r_
 
 
+    @njit(cache=True)
+    def config_scratch(nj, nb, nc, npnt, nslot):
+        """Scratch arrays of :func:`_one_config` for one thread (``jR[nj]``: the universe, identity)."""
+        jR = np.empty((nj + 1, 3, 3))   # slot nj: the universe (identity), for bodies welded to ground
+        jp = np.zeros((nj + 1, 3))
+        for r in range(3):
+            for c in range(3):
+                jR[nj, r, c] = 1.0 if r == c else 0.0
+        return (jR, jp, np.empty((nj, 3)), np.empty(nj), np.empty((3, 3)), np.empty(3), np.empty((3, 3)),
+                np.empty((nb, 3, 3)), np.empty((nb, 3)), np.zeros((nb, nc, 3)), np.zeros((nb, nc, 3)),
+                np.empty((npnt, 3)), np.zeros((npnt, 3, 3)), np.empty(npnt, dtype=np.bool_), np.zeros((npnt, 3)),
+                np.empty(3), np.empty((nslot, 3)), np.empty((nslot, 3)))
+
     @njit(cache=True, parallel=True)
     def _paths_kernel(q, want_ma,
                       j_parent, j_R, j_p, j_axis, j_rev, j_coord, j_fn,
@@ -313,27 +326,8 @@ if numba is not None:
         npnt = pt_body.shape[0]
         nch = min(N, 64)
         for ch in prange(nch):
-            jR = np.empty((nj + 1, 3, 3))   # slot nj: the universe (identity), for bodies welded to ground
-            jp = np.zeros((nj + 1, 3))
-            for r in range(3):
-                for c in range(3):
-                    jR[nj, r, c] = 1.0 if r == c else 0.0
-            ja = np.empty((nj, 3))
-            dvj = np.empty(nj)
-            Rb = np.empty((3, 3))
-            pb = np.empty(3)
-            Rj = np.empty((3, 3))
-            bR = np.empty((nb, 3, 3))
-            bp = np.empty((nb, 3))
-            W = np.zeros((nb, nc, 3))
-            T = np.zeros((nb, nc, 3))
-            X = np.empty((npnt, 3))
-            dL = np.zeros((npnt, 3, 3))
-            act = np.empty(npnt, dtype=np.bool_)
-            F = np.zeros((npnt, 3))
-            lv = np.empty(3)
-            SF = np.empty((slot_body.shape[0], 3))
-            SM = np.empty((slot_body.shape[0], 3))
+            (jR, jp, ja, dvj, Rb, pb, Rj, bR, bp, W, T, X, dL, act, F, lv, SF, SM) = config_scratch(
+                nj, nb, nc, npnt, slot_body.shape[0])
             for t in range(ch * N // nch, (ch + 1) * N // nch):
                 _one_config(t, q, want_ma, j_parent, j_R, j_p, j_axis, j_rev, j_coord, j_fn,
                             b_joint, b_R, b_p, body_support,

@@ -25,7 +25,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .fastpaths import _one_config
+from .fastpaths import _one_config, config_scratch
 from .wrapping import CYLINDER, MANDATORY_WRAP, WRAPPED, _cylinder, _path_core, _wrap_any
 
 @njit(cache=True, inline="always")
@@ -53,27 +53,8 @@ def _kernel(q, want_ma, fa, wa, pstart, pend, wstart, wend, single, kp_start, kp
     cap = max_pts + 2 * max_w
     nch = min(N, 64)
     for ch in prange(nch):
-        jR = np.empty((nj + 1, 3, 3))   # slot nj: the universe (identity), for bodies welded to ground
-        jp = np.zeros((nj + 1, 3))
-        for r in range(3):
-            for c in range(3):
-                jR[nj, r, c] = 1.0 if r == c else 0.0
-        ja = np.empty((nj, 3))
-        dvj = np.empty(nj)
-        Rb = np.empty((3, 3))
-        pb = np.empty(3)
-        Rj = np.empty((3, 3))
-        bR = np.empty((nb, 3, 3))
-        bp = np.empty((nb, 3))
-        W = np.zeros((nb, nc, 3))
-        T = np.zeros((nb, nc, 3))
-        X = np.empty((npnt, 3))
-        dL = np.zeros((npnt, 3, 3))
-        act = np.empty(npnt, dtype=np.bool_)
-        F = np.zeros((npnt, 3))
-        lv = np.empty(3)
-        SF = np.empty((slot_body.shape[0], 3))
-        SM = np.empty((slot_body.shape[0], 3))
+        (jR, jp, ja, dvj, Rb, pb, Rj, bR, bp, W, T, X, dL, act, F, lv, SF, SM) = config_scratch(
+            nj, nb, nc, npnt, slot_body.shape[0])
         path = np.empty(cap, dtype=np.int64)
         pos = np.zeros((cap, 3))
         cache = np.zeros((cap, 3))
