@@ -52,7 +52,8 @@ from .urdf_build import ROBOT_DIR, atomic_write
 #: The thesis robot's 27 PAMs as designed by hand (sized by the thesis algorithm): the baseline.
 THESIS_DESIGN = ROBOT_DIR / "data" / "thesis_design.yaml"
 #: The thesis design with its 9-muscle gluteal group split into gluteus maximus (24) and gluteus
-#: medius/minimus (28): the seed of the optimiser-v2 example (tools/make_split_gluteal.py).
+#: medius/minimus anterior (28) and posterior (29): the seed of the default optimiser run
+#: (tools/make_split_gluteal.py).
 SPLIT_GLUTEAL_DESIGN = ROBOT_DIR / "data" / "split_gluteal_design.yaml"
 #: The robot's current design (starts as the thesis design; ``pamkin optimize --apply`` replaces it).
 ROBOT_DESIGN = ROBOT_DIR / "data" / "pam_biped.yaml"

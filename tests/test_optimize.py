@@ -169,7 +169,7 @@ def test_config_regions(tmp_path):
 @pytest.mark.slow
 def test_default_run_on_the_hip_group(tmp_path):
     """The default run (v2: split-gluteal seed, multi-joint training poses, rated force, bone meshes, a
-    60-unit budget) on the five hip actuators 24-28 (about a minute; the whole default run, 6 minutes, is
+    60-unit budget) on the six hip actuators 24-29 (about a minute; the whole default run, 6 minutes, is
     measured by benchmarks/bench_optimize.py). Checked independently of the optimiser: PAM units and
     Festo's ratings by the design file and pamkin.festo, bone distances by the meshes, walking by the
     gait pressure plan."""
@@ -180,10 +180,10 @@ def test_default_run_on_the_hip_group(tmp_path):
     from pamkin.bones import BoneSet
     from pamkin.robot import robot_skeleton
 
-    cfg = RunConfig(actuators=[24, 25, 26, 27, 28])
+    cfg = RunConfig(actuators=[24, 25, 26, 27, 28, 29])
     s = run(cfg, tmp_path / "run")
     design = load_design(tmp_path / "run" / "design.yaml")
-    assert len(design.pams) == 28 and 2 * sum(p.n_parallel for p in design.pams) <= 60
+    assert len(design.pams) == 29 and 2 * sum(p.n_parallel for p in design.pams) <= 60
     skel = robot_skeleton()
     robot = PamRobot(design, skel, sides=("r",))
     q = random_poses(skel, load_rom(design.rom, "r"), 400, seed=5)
@@ -196,12 +196,12 @@ def test_default_run_on_the_hip_group(tmp_path):
             assert st.forces[:, k].max() / p.n_parallel <= festo.F_MAX_THEORETICAL[p.diameter_mm], p.name
     bones = BoneSet(skel)
     for p in design.pams:
-        if p.id in (24, 25, 26):             # cleared by the run (27 and 28 are reported not clear)
+        if p.id in (24, 25, 26):             # cleared by the run (27, 28 and 29 are reported not clear)
             assert s["bone_mesh"][str(p.id)]["clear"], s["bone_mesh_not_clear"]
             for pt in p.points:
                 d = float(bones.body_closest(pt.body, np.array([pt.location]))[0][0])
                 assert 0.0 <= d <= 0.020, (p.name, pt.name, d)
-    assert gait.feasible_frame_fraction(PamRobot(design, skel)) >= 0.85      # measured 0.91
+    assert gait.feasible_frame_fraction(PamRobot(design, skel)) >= 0.9       # measured 1.0
     assert any(line.startswith("actuator 24 Gluteus maximus: keeping the route") for line in s["bone_mesh_fit_cost"])
 
 

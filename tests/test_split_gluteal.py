@@ -1,5 +1,6 @@
 """The split-gluteal seed design (tools/make_split_gluteal.py): the thesis layout with actuator 24's nine
-gluteal muscles shared between gluteus maximus (24) and gluteus medius/minimus (28)."""
+gluteal muscles shared between gluteus maximus (24) and gluteus medius/minimus, anterior (28) and
+posterior (29)."""
 
 from __future__ import annotations
 
@@ -18,13 +19,25 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_split_design_partitions_the_gluteal_group():
     thesis, split = load_design("thesis"), load_design("split_gluteal")
     assert split.path == str(SPLIT_GLUTEAL_DESIGN)
-    assert [p.id for p in split.pams] == list(range(1, 29))
-    g24, g28 = split.pam(24), split.pam(28)
+    assert [p.id for p in split.pams] == list(range(1, 30))
+    g24, g28, g29 = split.pam(24), split.pam(28), split.pam(29)
     assert set(g24.human_muscles) == {"glut_max1_r", "glut_max2_r", "glut_max3_r"}
-    assert set(g24.human_muscles) | set(g28.human_muscles) == set(thesis.pam(24).human_muscles)
-    assert not set(g24.human_muscles) & set(g28.human_muscles)
-    assert g28.primary_coordinate == "hip_adduction_r"
+    groups = [set(g.human_muscles) for g in (g24, g28, g29)]
+    assert set().union(*groups) == set(thesis.pam(24).human_muscles)
+    assert sum(len(g) for g in groups) == 9                   # disjoint
+    assert g28.primary_coordinate == g29.primary_coordinate == "hip_adduction_r"
     assert g24.points == thesis.pam(24).points
+    # the halves: equal abduction, opposite rotation (human torques at the default pose)
+    import numpy as np
+
+    import pamkin
+
+    human = pamkin.gait2392()
+    T = human.torques(np.zeros((1, len(human.coordinates))))[0]
+    tau = {k: {c: sum(T[human.muscles.index(m), human.coordinates.index(c)] for m in g.human_muscles)
+               for c in ("hip_adduction_r", "hip_rotation_r")} for k, g in ((28, g28), (29, g29))}
+    assert abs(tau[28]["hip_adduction_r"] - tau[29]["hip_adduction_r"]) < 0.05 * abs(tau[28]["hip_adduction_r"])
+    assert tau[28]["hip_rotation_r"] > 15 and tau[29]["hip_rotation_r"] < -15
     for p in thesis.pams:                    # everything else is the thesis design
         if p.id != 24:
             assert split.pam(p.id) == p
@@ -39,11 +52,12 @@ def test_split_design_file_is_up_to_date():
 @pytest.mark.skipif(not gait.DEFAULT_IK.is_file(), reason="walking trial (../shared/gait) not available")
 def test_splitting_the_gluteal_group_lets_the_thesis_robot_walk_more_of_the_trial():
     """One lumped PAM cannot abduct the hip in single stance without extending and rotating it: with
-    the thesis routes unchanged, the split alone raises the feasible frames from 33 of 67 to 43."""
+    the thesis routes unchanged and the seed routes of 28 and 29 (Gait2392's, unoptimised), the split
+    alone raises the feasible frames from 33 of 67 to 37 (the optimised default run: 100 %)."""
     thesis = gait.gait_plan("thesis")
     split = gait.gait_plan("split_gluteal")
     assert round(67 * thesis.feasible_frame_fraction) == 33
-    assert round(67 * split.feasible_frame_fraction) == 43
+    assert round(67 * split.feasible_frame_fraction) == 37
     hip_l = [c for c in split.coordinate_results if c.name == "hip_adduction_l"][0]
     hip_l_thesis = [c for c in thesis.coordinate_results if c.name == "hip_adduction_l"][0]
-    assert hip_l.within_tolerance_fraction > hip_l_thesis.within_tolerance_fraction + 0.1
+    assert hip_l.within_tolerance_fraction > hip_l_thesis.within_tolerance_fraction + 0.05

@@ -28,7 +28,7 @@ def add_parsers(sub) -> None:
                     "human muscles it replaces, about every coordinate the route or the muscles cross, on "
                     "1-D sweeps, 2-D grids and multi-joint training poses, within the PAMs' strain limits and "
                     "Festo's rated force and 25 percent contraction. Defaults (optimize/config.py): the "
-                    "split-gluteal seed design (28 actuators), a 60-unit budget over diameters and parallel "
+                    "split-gluteal seed design (29 actuators), a 60-unit budget over diameters and parallel "
                     "counts, then the real bone meshes (points 3-18 mm outside their bone, segments clear "
                     "of every bone at random, sweep and gait poses); about 6 minutes on 2 cores. "
                     "examples/optimize_fast.toml is the earlier 2.5-minute fit. Writes a run folder "
