@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +43,8 @@ def before_after_plot(seed: Design, new: Design, path: Path, n: int = 61) -> Pat
         ax.plot(x, human.torques(q)[:, idx, ci].sum(1), "k-", lw=2, label="human (Gait2392)")
         ax.plot(x, rb.evaluate(q).torques[:, k, ci], "C3--", label=f"{seed.name}")
         ax.plot(x, ra.evaluate(q).torques[:, k, ci], "C0-", label="optimised")
-        ax.set_title(f"{pid} {pam.name}"[:30], fontsize=9)
+        title = f"{pid} {pam.name}"
+        ax.set_title(title if len(title) <= 30 else textwrap.fill(title, 30), fontsize=9 if len(title) <= 30 else 8)
         ax.set_xlabel(f"{c} [deg]", fontsize=8)
         ax.set_ylabel("torque [N·m]", fontsize=8)
         ax.tick_params(labelsize=7)
