@@ -253,8 +253,10 @@ class Model:
         """
         q = self.kinematics.as_q(q)
         Lw = Rp = None
-        if self._fastwrap is not None:
-            L, R, Lw, Rp = self._fastwrap.evaluate(q, moment_arms)
+        if self._fastwrap is not None:      # in chunks: bounded memory
+            parts = [self._fastwrap.evaluate(q[i:i + chunk], moment_arms) for i in range(0, max(len(q), 1), chunk)]
+            L, Lw = (np.concatenate([p[j] for p in parts]) for j in (0, 2))
+            R, Rp = (np.concatenate([p[j] for p in parts]) if moment_arms else None for j in (1, 3))
         elif self._fast is not None:
             L, R = self._fast.evaluate(q, moment_arms)
         else:
