@@ -171,6 +171,12 @@ def actuator_data(pam: Pam, human: Model, rom: RangeOfMotion, cfg: RunConfig, fi
             train_rows = np.arange(start, start + len(qt))
             blocks.append(qt)
             start += len(qt)
+        # the strain and force limits also at the corners of the crossed coordinates' range (held-out
+        # poses there stretched soleus and rectus femoris past Festo's rated force)
+        qk = corner_poses(human, rom, crossed, cfg.seed, pam.id)
+        corner_rows = np.arange(start, start + len(qk))
+        blocks.append(qk)
+        start += len(qk)
     q = np.vstack(blocks)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RangeWarning)    # training poses may leave the human model's ranges
@@ -182,7 +188,7 @@ def actuator_data(pam: Pam, human: Model, rom: RangeOfMotion, cfg: RunConfig, fi
         if peak <= 1e-9:
             peak = float(np.max(np.abs(T[objective[0][1], human.coordinates.index(prim)])))
         norm = {f"train {c}": peak for c in crossed}
-        constraint_idx = np.concatenate([constraint_idx, train_rows])
+        constraint_idx = np.concatenate([constraint_idx, train_rows, corner_rows])
         clearance_idx = np.concatenate([clearance_idx, train_rows[::6]])
     obj = []
     for c, rows, w, label in objective:
@@ -268,6 +274,33 @@ def training_poses(model: Model, rom: RangeOfMotion, coords: list[str], n: int, 
             coords.append(dep)
     q = np.zeros((n, len(model.coordinates)))
     for c, v in rom.from_unit(coords, rng.random((n, len(coords)))).items():
+        q[:, model.coordinates.index(c)] = v
+    return q
+
+
+#: Largest number of range-of-motion corners among an actuator's constraint samples.
+MAX_CORNERS = 64
+
+
+def corner_poses(model: Model, rom: RangeOfMotion, coords: list[str], seed: int, actuator: int,
+                 max_n: int = MAX_CORNERS) -> np.ndarray:
+    """The corners of the range-of-motion box of ``coords`` (and the coordinates their coupled limits
+    depend on), others 0: where a route is longest or shortest when its length is monotone in each
+    coordinate, i.e. where the PAM is most stretched (largest force) or most contracted. At most
+    ``max_n`` of them (a seeded choice, stream :data:`OPTIMIZE_STREAM`)."""
+    import itertools  # noqa: PLC0415
+
+    coords = [c for c in coords if c in rom.coordinates]
+    for c in list(coords):
+        dep = getattr(rom._coupled_by.get(c), "depends_on", None)
+        if dep and dep not in coords and dep in model.coordinates:
+            coords.append(dep)
+    U = np.array(list(itertools.product((0.0, 1.0), repeat=len(coords))), dtype=float).reshape(-1, len(coords))
+    if len(U) > max_n:
+        rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(OPTIMIZE_STREAM, int(actuator), 1)))
+        U = U[np.sort(rng.choice(len(U), max_n, replace=False))]
+    q = np.zeros((len(U), len(model.coordinates)))
+    for c, v in rom.from_unit(coords, U).items():
         q[:, model.coordinates.index(c)] = v
     return q
 

@@ -398,3 +398,36 @@ def test_fit_cost_of_the_bone_rounds_is_named():
     lines = run_mod.fit_cost_lines([r1, r2, r3, _fake_result(27, {})])
     assert lines == ["actuator 24 Gluteal group: keeping the route on and clear of bone raised the fit objective "
                      "0.03 -> 0.6 (x20); its fitted route had points p2 39 mm, p4 54 mm from bone"]
+
+
+def test_corner_poses_are_the_range_corners_and_bound_the_route_length():
+    """The constraint samples' range corners (optimize.samples.corner_poses): every combination of each
+    coordinate's limits (coupled limits at the value of the coordinate they depend on), capped and
+    seeded. Soleus' route is longest (its PAM most stretched: the held-out rated-force failure) at a corner;
+    its shortest is inside the subtalar range, so the corners are a help, not a bound, for contraction."""
+    from pamkin.optimize.samples import corner_poses
+
+    human = pamkin.gait2392()
+    rom = load_rom("robot_thesis", "r")
+    coords = ["ankle_angle_r", "subtalar_angle_r"]
+    q = corner_poses(human, rom, coords, seed=0, actuator=12)
+    assert q.shape == (4, len(human.coordinates))
+    for c in coords:
+        i = human.coordinates.index(c)
+        lo, hi = rom.bounds(c, {})
+        assert sorted(set(np.round(q[:, i], 12))) == sorted({round(float(lo), 12), round(float(hi), 12)})
+    others = [i for i, c in enumerate(human.coordinates) if c not in coords]
+    assert not q[:, others].any()
+    many = ["hip_flexion_r", "hip_adduction_r", "hip_rotation_r", "knee_angle_r", "ankle_angle_r",
+            "subtalar_angle_r", "mtp_angle_r"]
+    a = corner_poses(human, rom, many, seed=0, actuator=8, max_n=20)
+    assert len(a) == 20 and len(np.unique(a, axis=0)) == 20
+    assert np.array_equal(a, corner_poses(human, rom, many, seed=0, actuator=8, max_n=20))   # seeded
+    # soleus' route (tibia -> calcaneus): its longest length over random poses is not above its corners'
+    sol = human.muscles.index("soleus_r")
+    from pamkin.audit import random_poses
+
+    Lc = human.lengths(q)[:, sol]
+    Lr = human.lengths(random_poses(human, rom, 500, seed=3))[:, sol]
+    assert Lr.max() <= Lc.max() + 1e-9
+    assert Lr.min() < Lc.min()                  # (the shortest is not at a corner)
