@@ -44,7 +44,8 @@ def before_after_plot(seed: Design, new: Design, path: Path, n: int = 61) -> Pat
         ax.plot(x, rb.evaluate(q).torques[:, k, ci], "C3--", label=f"{seed.name}")
         ax.plot(x, ra.evaluate(q).torques[:, k, ci], "C0-", label="optimised")
         title = f"{pid} {pam.name}"
-        ax.set_title(title if len(title) <= 30 else textwrap.fill(title, 30), fontsize=9 if len(title) <= 30 else 8)
+        wrap = len(title) > 30
+        ax.set_title(textwrap.fill(title, 30) if wrap else title, fontsize=8 if wrap else 9)
         ax.set_xlabel(f"{c} [deg]", fontsize=8)
         ax.set_ylabel("torque [N·m]", fontsize=8)
         ax.tick_params(labelsize=7)

@@ -311,31 +311,32 @@ if numba is not None:
                 np.empty((npnt, 3)), np.zeros((npnt, 3, 3)), np.empty(npnt, dtype=np.bool_), np.zeros((npnt, 3)),
                 np.empty(3), np.empty((nslot, 3)), np.empty((nslot, 3)))
 
+    @njit(cache=True)
+    def one_config_packed(t, q, want_ma, fa, sc, L_out, R_out):
+        """:func:`_one_config` with the model arrays packed as :attr:`FastPaths.packed` and the scratch
+        arrays as :func:`config_scratch` returns them."""
+        (j_parent, j_R, j_p, j_axis, j_rev, j_coord, j_fn, b_joint, b_R, b_p, body_support,
+         pt_body, pt_local, pt_fn, pt_fcoord, pt_cond, pt_lo, pt_hi, m_start, m_end, pair_start, pair_coord,
+         kind, scale, p0, p1, off, n, kx, ky, kb, kc, kd, pt_slot, ms_start, slot_body) = fa
+        (jR, jp, ja, dvj, Rb, pb, Rj, bR, bp, W, T, X, dL, act, F, lv, SF, SM) = sc
+        _one_config(t, q, want_ma, j_parent, j_R, j_p, j_axis, j_rev, j_coord, j_fn,
+                    b_joint, b_R, b_p, body_support,
+                    pt_body, pt_local, pt_fn, pt_fcoord, pt_cond, pt_lo, pt_hi,
+                    m_start, m_end, pair_start, pair_coord,
+                    kind, scale, p0, p1, off, n, kx, ky, kb, kc, kd,
+                    L_out, R_out, jR, jp, ja, dvj, Rb, pb, Rj, bR, bp, W, T, X, dL, act, F, lv,
+                    pt_slot, ms_start, slot_body, SF, SM)
+
     @njit(cache=True, parallel=True)
-    def _paths_kernel(q, want_ma,
-                      j_parent, j_R, j_p, j_axis, j_rev, j_coord, j_fn,
-                      b_joint, b_R, b_p, body_support,
-                      pt_body, pt_local, pt_fn, pt_fcoord, pt_cond, pt_lo, pt_hi,
-                      m_start, m_end, pair_start, pair_coord,
-                      kind, scale, p0, p1, off, n, kx, ky, kb, kc, kd,
-                      pt_slot, ms_start, slot_body, L_out, R_out):
+    def _paths_kernel(q, want_ma, fa, sizes, L_out, R_out):
+        """Lengths and moment arms of every configuration (``sizes``: :attr:`FastPaths.sizes`)."""
         N = q.shape[0]
-        nj = j_parent.shape[0]
-        nb = b_joint.shape[0]
-        nc = q.shape[1]
-        npnt = pt_body.shape[0]
+        nj, nb, npnt, nslot = sizes
         nch = min(N, 64)
         for ch in prange(nch):
-            (jR, jp, ja, dvj, Rb, pb, Rj, bR, bp, W, T, X, dL, act, F, lv, SF, SM) = config_scratch(
-                nj, nb, nc, npnt, slot_body.shape[0])
+            sc = config_scratch(nj, nb, q.shape[1], npnt, nslot)
             for t in range(ch * N // nch, (ch + 1) * N // nch):
-                _one_config(t, q, want_ma, j_parent, j_R, j_p, j_axis, j_rev, j_coord, j_fn,
-                            b_joint, b_R, b_p, body_support,
-                            pt_body, pt_local, pt_fn, pt_fcoord, pt_cond, pt_lo, pt_hi,
-                            m_start, m_end, pair_start, pair_coord,
-                            kind, scale, p0, p1, off, n, kx, ky, kb, kc, kd,
-                            L_out, R_out, jR, jp, ja, dvj, Rb, pb, Rj, bR, bp, W, T, X, dL, act, F, lv,
-                            pt_slot, ms_start, slot_body, SF, SM)
+                one_config_packed(t, q, want_ma, fa, sc, L_out, R_out)
 
 
     @njit(cache=True)
@@ -467,6 +468,14 @@ class FastPaths:
         self.slot_body = np.array(slot_body, dtype=np.int64)
         self.n_paths = paths.n_paths
         self.n_pairs = len(pairs)
+        #: The model arrays in :func:`_one_config`'s order (the compiled kernels take them as one tuple).
+        self.packed = (self.j_parent, self.j_R, self.j_p, self.j_axis, self.j_rev, self.j_coord, self.j_fn,
+                       self.b_joint, self.b_R, self.b_p, self.body_support, self.pt_body, self.pt_local,
+                       self.pt_fn, self.pt_fcoord, self.pt_cond, self.pt_lo, self.pt_hi, self.m_start,
+                       self.m_end, self.pair_start, self.pair_coord, *self.ftab, self.pt_slot, self.ms_start,
+                       self.slot_body)
+        #: (joints, frames, path points, path body slots): the sizes of :func:`config_scratch`.
+        self.sizes = (len(self.j_parent), len(self.b_joint), len(self.pt_body), len(self.slot_body))
 
     def body_poses(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Body placements in ground: (N, n_frames, 3, 3) and (N, n_frames, 3), frames as
@@ -486,9 +495,5 @@ class FastPaths:
         N = q.shape[0]
         L = np.empty((N, self.n_paths))
         R = np.empty((N, self.n_pairs)) if moment_arms else np.empty((N, 0))
-        _paths_kernel(q, moment_arms, self.j_parent, self.j_R, self.j_p, self.j_axis, self.j_rev,
-                      self.j_coord, self.j_fn, self.b_joint, self.b_R, self.b_p, self.body_support,
-                      self.pt_body, self.pt_local, self.pt_fn, self.pt_fcoord, self.pt_cond, self.pt_lo,
-                      self.pt_hi, self.m_start, self.m_end, self.pair_start, self.pair_coord,
-                      *self.ftab, self.pt_slot, self.ms_start, self.slot_body, L, R)
+        _paths_kernel(q, moment_arms, self.packed, self.sizes, L, R)
         return L, (R if moment_arms else None)

@@ -1261,23 +1261,21 @@ def _from_cyl(R, o, r):
 # ----------------------------------------------------------------------------- frames
 @njit(**_OPTS)
 def _to_local(x, R, p):
-    """R^T (x - p): a point in a frame with orientation R and origin p."""
-    d0, d1, d2 = x[0] - p[0], x[1] - p[1], x[2] - p[2]
-    return _vec(d0 * R[0, 0] + d1 * R[1, 0] + d2 * R[2, 0], d0 * R[0, 1] + d1 * R[1, 1] + d2 * R[2, 1],
-                d0 * R[0, 2] + d1 * R[1, 2] + d2 * R[2, 2])
+    """R^T (x - p): a point in a frame with orientation R and origin p (array of :func:`_t_to_local`)."""
+    a = _t_to_local(x, R, p)
+    return _vec(a[0], a[1], a[2])
 
 
 @njit(**_OPTS)
 def _to_world(r, R, p):
-    """p + R r."""
-    return _vec(p[0] + (R[0, 0] * r[0] + R[0, 1] * r[1] + R[0, 2] * r[2]),
-                p[1] + (R[1, 0] * r[0] + R[1, 1] * r[1] + R[1, 2] * r[2]),
-                p[2] + (R[2, 0] * r[0] + R[2, 1] * r[1] + R[2, 2] * r[2]))
+    """p + R r (array of :func:`_t_to_world`)."""
+    a = _t_to_world(r, R, p)
+    return _vec(a[0], a[1], a[2])
 
 
 @njit(**_OPTS)
 def _t_to_local(x, R, p):
-    """:func:`_to_local` on tuples (the same operations)."""
+    """R^T (x - p) as an (x, y, z) tuple: a point in a frame with orientation R and origin p."""
     d0, d1, d2 = x[0] - p[0], x[1] - p[1], x[2] - p[2]
     return (d0 * R[0, 0] + d1 * R[1, 0] + d2 * R[2, 0], d0 * R[0, 1] + d1 * R[1, 1] + d2 * R[2, 1],
             d0 * R[0, 2] + d1 * R[1, 2] + d2 * R[2, 2])
@@ -1285,7 +1283,7 @@ def _t_to_local(x, R, p):
 
 @njit(**_OPTS)
 def _t_to_world(r, R, p):
-    """:func:`_to_world` on tuples (the same operations)."""
+    """p + R r as an (x, y, z) tuple."""
     return (p[0] + (R[0, 0] * r[0] + R[0, 1] * r[1] + R[0, 2] * r[2]),
             p[1] + (R[1, 0] * r[0] + R[1, 1] * r[1] + R[1, 2] * r[2]),
             p[2] + (R[2, 0] * r[0] + R[2, 1] * r[1] + R[2, 2] * r[2]))
@@ -1299,13 +1297,21 @@ def _t_dist(a, b):
 
 
 @njit(**_OPTS)
+def _frame_into(Rout, pout, Rb, pb, R, t):
+    """World pose (Rb R, pb + Rb t) of a frame (R, t) fixed in a body at (Rb, pb), written in place."""
+    w = _t_to_world(t, Rb, pb)
+    for i in range(3):
+        pout[i] = w[i]
+        for j in range(3):
+            Rout[i, j] = Rb[i, 0] * R[0, j] + Rb[i, 1] * R[1, j] + Rb[i, 2] * R[2, j]
+
+
+@njit(**_OPTS)
 def _frame(Rb, pb, R, t):
     """World pose (Rb R, pb + Rb t) of a frame (R, t) fixed in a body at (Rb, pb)."""
-    out = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = Rb[i, 0] * R[0, j] + Rb[i, 1] * R[1, j] + Rb[i, 2] * R[2, j]
-    return out, _to_world(t, Rb, pb)
+    Rout, pout = np.empty((3, 3)), np.empty(3)
+    _frame_into(Rout, pout, Rb, pb, R, t)
+    return Rout, pout
 
 
 # ----------------------------------------------------------------------------- the path algorithm
