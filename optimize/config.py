@@ -47,6 +47,8 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
     move_moving_points = true    # offset points that move with a coordinate (the patella) within the region
     rated_force = true           # (v2) force per PAM <= Festo's rated force and contraction <= Festo's maximum (0.25)
     one_segment = false          # (v2) the PAM (+ fittings) fits on one straight segment of its route
+    sensitivity_pct = 9.0        # (v2) a 1 mm error of a fixed attachment point changes the primary torque
+                                 # on its 1-D sweep by at most this % of the human peak (audit: 10); 0: off
     bone_mesh = true             # (v2) attachment points on their bone (3..18 mm out), segments clear of the
                                  #      real bone meshes at random, sweep and gait poses (optimize.bone_cuts)
     bone_rounds = 10             # (v2) largest number of re-linearisation rounds of the bone-mesh rows
@@ -78,7 +80,7 @@ _SECTIONS = {
                "bone_clearance": "bone_clearance", "kmax_scale": "kmax_scale",
                "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths",
                "move_moving_points": "move_moving_points", "rated_force": "rated_force",
-               "one_segment": "one_segment", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
+               "one_segment": "one_segment", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
                "max_units": "max_units",
                "pam_clearance": "pam_clearance"},
 }
@@ -95,7 +97,7 @@ def _is_number(v) -> bool:
 #: The earlier default (before the v2 ingredients were switched on): the 1-D/2-D fit of the robot's
 #: current design, capsule bone clearance, no unit budget. ``RunConfig(**FAST_FIT)``.
 FAST_FIT: dict = {"design": "", "multistart": 2, "max_solve_seconds": 0.0, "n_random": 0, "weight_mass": 0.0,
-                  "rated_force": False, "bone_mesh": False, "max_units": 0}
+                  "rated_force": False, "bone_mesh": False, "max_units": 0, "sensitivity_pct": 0.0}
 
 
 @dataclass
@@ -134,6 +136,7 @@ class RunConfig:
     move_moving_points: bool = True
     rated_force: bool = True
     one_segment: bool = False
+    sensitivity_pct: float = 9.0
     bone_mesh: bool = True
     bone_rounds: int = 10
     pam_clearance: bool = False
@@ -184,7 +187,7 @@ class RunConfig:
                 raise bad(_KEYS[name], f"must be >= 2 and <= 201 samples, got {getattr(self, name)}")
         for name in ("multistart", "seed", "multistart_threshold", "weight_primary", "weight_secondary",
                      "regularization", "region_m", "min_point_distance_m", "pretension_scale",
-                     "weight_whole_vector", "weight_mass", "n_random", "max_solve_seconds"):
+                     "weight_whole_vector", "weight_mass", "n_random", "max_solve_seconds", "sensitivity_pct"):
             if getattr(self, name) < 0:
                 raise bad(_KEYS[name], f"must be >= 0, got {getattr(self, name)}")
         if self.weight_primary + self.weight_secondary <= 0:

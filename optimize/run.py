@@ -123,9 +123,12 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         for d in cfg.diameters_mm:
             warm = (pam.resting_length_m, pam.tendon_length_m) if (d, 1) == same_seed else (None, None)
             results[(d, 1)] = attempt(d, 1, seed, *warm, "seed")
-        if cfg.one_segment and not any(s.success for s in results.values()):
-            # the PAM cannot sit on one straight segment of this route within the limits: say so, solve without
-            relaxed = frozenset({"one_segment"})
+        optional = frozenset(name for name, on in (("one_segment", cfg.one_segment),
+                                                   ("sensitivity", cfg.sensitivity_pct > 0)) if on)
+        if optional and not any(s.success for s in results.values()):
+            # the PAM cannot sit on one straight segment of this route, or keep the sensitivity limit, within
+            # the other limits: say so (``relaxed``), solve without them
+            relaxed = optional
             for d in cfg.diameters_mm:
                 results[(d, 1)] = attempt(d, 1, seed, None, None, "seed", relaxed)
         feasible = {key: s for key, s in results.items() if s.success}
@@ -151,6 +154,10 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     return _result(pam, data, best_problem[0], best, attempts, t0, bone)
 
 
+#: Rounds of the held-out limit check after the bone-mesh stage (optimize.limit_check).
+LIMIT_CHECK_ROUNDS = 2
+
+
 def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
     """The bone-mesh stage of a solved actuator (when ``cfg.bone_mesh``): (solution, bone info). A warm
     start taken as given (already through these rounds in its run) stays unless a round beats it."""
@@ -159,10 +166,30 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
     from .bone_cuts import BoneCuts, bone_check_poses, bone_stage  # noqa: PLC0415
 
     cuts = BoneCuts(pam, _STATE["human"], _STATE["bones"],
-                    *bone_check_poses(_STATE["human"], _STATE["rom"], pam, cfg.seed))
+                    *bone_check_poses(_STATE["human"], _STATE["rom"], pam, cfg.seed, crossed=prob.data.crossed))
     lines: list[str] = []
     before = best
     best, measure, info = bone_stage(prob, best, cuts, cfg.bone_rounds, lines, keep_start=best.status == "given")
+    # the strain and force limits on many more poses; where one is exceeded, tighten it and run again
+    from .limit_check import check_poses, limit_excess, tighten  # noqa: PLC0415
+
+    q_check = check_poses(_STATE["human"], _STATE["rom"], prob.data.crossed or [pam.primary_coordinate],
+                          cfg.seed, pam.id)
+    for _ in range(LIMIT_CHECK_ROUNDS):
+        excess = limit_excess(solution_pam(pam, prob.finalize(best)), _STATE["human"], q_check, cfg,
+                              prob.data.fitting_length)
+        if not excess:
+            break
+        lines.append("  limit check on %d more poses: %s; limits tightened, bone rounds again" % (
+            len(q_check), "; ".join(f"{k} exceeded by {v:.4g}" for k, v in excess.items())))
+        tighten(prob, excess)
+        best, measure, more = bone_stage(prob, best, cuts, cfg.bone_rounds, lines)
+        info += more
+    else:
+        excess = limit_excess(solution_pam(pam, prob.finalize(best)), _STATE["human"], q_check, cfg,
+                              prob.data.fitting_length)
+        if excess:
+            lines.append("  limit check: still exceeded: " + "; ".join(f"{k} by {v:.4g}" for k, v in excess.items()))
     bone = _bone_info(cuts, before, measure, info, lines, [p.name for p in pam.points])
     bone.update(objective_before=float(before.objective), objective_after=float(best.objective))
     return best, bone
@@ -233,18 +260,24 @@ def choose_units(results: list[ActuatorResult], budget: int) -> tuple[list, floa
     return [next(it) if r.candidates else None for r in results], float(table[cap])
 
 
-def _result(pam: Pam, data, prob, best, attempts: list, t0: float, bone: dict) -> ActuatorResult:
-    """The saved form of an actuator's best solution (tendon clipped at 0, moving points shifted)."""
-    best = prob.finalize(best)
+def solution_pam(pam: Pam, best) -> Pam:
+    """The seed PAM with a (finalised) solution's route, sizes, diameter and parallel count (moving
+    points shifted by their offsets)."""
     new_points = []
     for pt, loc in zip(pam.points, best.points):
         if is_free(pt):
             new_points.append(type(pt)(pt.name, pt.body, tuple(float(v) for v in loc)))
         else:
             new_points.append(shift_moving_point(pt, loc))
-    new = Pam(pam.id, pam.name, pam.human_muscles, pam.primary_coordinate, pam.secondary_coordinates,
-              best.diameter_mm, best.n_parallel, best.rest_length, best.tendon_length, tuple(new_points),
-              pam.notes)
+    return Pam(pam.id, pam.name, pam.human_muscles, pam.primary_coordinate, pam.secondary_coordinates,
+               best.diameter_mm, best.n_parallel, best.rest_length, best.tendon_length, tuple(new_points),
+               pam.notes)
+
+
+def _result(pam: Pam, data, prob, best, attempts: list, t0: float, bone: dict) -> ActuatorResult:
+    """The saved form of an actuator's best solution (tendon clipped at 0, moving points shifted)."""
+    best = prob.finalize(best)
+    new = solution_pam(pam, best)
     sample_q = {label: data.q[rows] for _, rows, _, _, label in data.objective}
     return ActuatorResult(pam.id, pam.name, new, best.status, best.success, attempts, best.nrmse_samples,
                           best.torque_samples, sample_q, best.violations, time.perf_counter() - t0,
@@ -302,7 +335,7 @@ def clearance_pass(seed: Design, results: list[ActuatorResult], cfg: RunConfig, 
         if r.z is None or not r.success:
             continue
         data = _STATE["data"][k]
-        q, n_right = bone_check_poses(human, rom, data.pam, cfg.seed)
+        q, n_right = bone_check_poses(human, rom, data.pam, cfg.seed, crossed=data.crossed)
         bodies = pam_bodies(design, human, q)
         mine = bodies[index[r.id]]
         others = [b for b in bodies if b.id != r.id]

@@ -263,15 +263,22 @@ def crossed_coordinates(model: Model, rom: RangeOfMotion, route, human_torque, n
     return [c for c, h in zip(model.coordinates, hit) if h and not c.startswith("pelvis_")]
 
 
-def training_poses(model: Model, rom: RangeOfMotion, coords: list[str], n: int, seed: int, actuator: int) -> np.ndarray:
-    """``n`` random poses varying ``coords`` (and the coordinates their coupled limits depend on)
-    uniformly within ``rom``, others 0; stream :data:`OPTIMIZE_STREAM` (never the audit's)."""
-    rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(OPTIMIZE_STREAM, int(actuator))))
+def with_dependencies(model: Model, rom: RangeOfMotion, coords: list[str]) -> list[str]:
+    """``coords`` that ``rom`` limits, plus the coordinates their coupled limits depend on (so that
+    :meth:`pamkin.rom.RangeOfMotion.from_unit` can place them)."""
     coords = [c for c in coords if c in rom.coordinates]
     for c in list(coords):
         dep = getattr(rom._coupled_by.get(c), "depends_on", None)
         if dep and dep not in coords and dep in model.coordinates:
             coords.append(dep)
+    return coords
+
+
+def training_poses(model: Model, rom: RangeOfMotion, coords: list[str], n: int, seed: int, actuator: int) -> np.ndarray:
+    """``n`` random poses varying ``coords`` (and the coordinates their coupled limits depend on)
+    uniformly within ``rom``, others 0; stream :data:`OPTIMIZE_STREAM` (never the audit's)."""
+    rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(OPTIMIZE_STREAM, int(actuator))))
+    coords = with_dependencies(model, rom, coords)
     q = np.zeros((n, len(model.coordinates)))
     for c, v in rom.from_unit(coords, rng.random((n, len(coords)))).items():
         q[:, model.coordinates.index(c)] = v
@@ -290,17 +297,30 @@ def corner_poses(model: Model, rom: RangeOfMotion, coords: list[str], seed: int,
     ``max_n`` of them (a seeded choice, stream :data:`OPTIMIZE_STREAM`)."""
     import itertools  # noqa: PLC0415
 
-    coords = [c for c in coords if c in rom.coordinates]
-    for c in list(coords):
-        dep = getattr(rom._coupled_by.get(c), "depends_on", None)
-        if dep and dep not in coords and dep in model.coordinates:
-            coords.append(dep)
+    coords = with_dependencies(model, rom, coords)
     U = np.array(list(itertools.product((0.0, 1.0), repeat=len(coords))), dtype=float).reshape(-1, len(coords))
     if len(U) > max_n:
         rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(OPTIMIZE_STREAM, int(actuator), 1)))
         U = U[np.sort(rng.choice(len(U), max_n, replace=False))]
     q = np.zeros((len(U), len(model.coordinates)))
     for c, v in rom.from_unit(coords, U).items():
+        q[:, model.coordinates.index(c)] = v
+    return q
+
+
+def boundary_poses(model: Model, rom: RangeOfMotion, coords: list[str], rng: np.random.Generator,
+                   n: int) -> np.ndarray:
+    """``n`` poses with each of ``coords`` (and the coordinates their coupled limits depend on) at its
+    lower limit, its upper limit or uniform within its range, a third each; others 0. Uniform samples
+    rarely reach the edges of a many-coordinate range, where routes are longest, shortest or nearest a
+    bone."""
+    coords = with_dependencies(model, rom, coords)
+    u = rng.random((n, len(coords)))
+    pick = rng.random((n, len(coords)))
+    u[pick < 1 / 3] = 0.0
+    u[pick > 2 / 3] = 1.0
+    q = np.zeros((n, len(model.coordinates)))
+    for c, v in rom.from_unit(coords, u).items():
         q[:, model.coordinates.index(c)] = v
     return q
 
