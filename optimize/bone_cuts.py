@@ -7,9 +7,10 @@ IPOPT as functions, so the optimiser uses them the way sequential convex collisi
 tangent plane at its closest surface point, by ``SEGMENT_CLEARANCE`` — and every body-fixed
 attachment point gets a row along its own bone's outward normal, n·(x − c) ≥ ``POINT_MIN``
 (outside the bone), and a ball of radius ``POINT_MAX`` around its bone's closest surface point (within
-bracket distance). The rows are elastic (a slack with an L1 penalty); the balls are hard (a bracket
-longer than 20 mm cannot be built; points beyond it are first pulled in, so every round starts inside
-its balls and each accepted round ends inside them); the points move within a trust region;
+bracket distance). The segment rows are elastic (a slack with an L1 penalty); the point rows and balls
+are hard (a point in bone or on a bracket longer than 20 mm cannot be built; points outside that band
+are first moved into it, so every round starts feasible for them and each accepted round ends so); the
+points move within a trust region;
 after each round the exact distances are measured again and the best round is kept. A second,
 optional pass adds rows that keep the route off the other PAMs' bodies (:mod:`optimize.pam_clearance`).
 
@@ -134,6 +135,7 @@ class BoneCuts:
         self.base = np.where(np.array(self.moving)[None, :, None], X, self.state.body_p[:, bidx])
         self.has_mesh = [(not m) and bool(bones.meshes.get(pt.body)) for pt, m in zip(pam.points, self.moving)]
         self.obstacles: list = []
+        self.n_point_rows = 0          # the first rows of measure(with_rows=True) are the (hard) point rows
         self.radius = 0.0
         self.mount = 0
 
@@ -249,12 +251,13 @@ class BoneCuts:
         nz = 3 * self.n_points + 2
         W, w0 = [], []
         # attachment points outside their bone (body frame): n·(x - c) >= POINT_MIN; within bracket
-        # distance: the ball |x - c| <= POINT_MAX of :meth:`balls`
+        # distance: the ball |x - c| <= POINT_MAX of :meth:`balls` (both hard: the first n_point_rows rows)
         for i in cs:
             w = np.zeros(nz)
             w[3 * i:3 * i + 3] = ns[i]
             W.append(w)
             w0.append(-(ns[i] @ cs[i]) - POINT_MIN)
+        self.n_point_rows = len(W)
         # segment samples near a bone: the closest poses of each, the nearest first
         S, K = d.shape
         cand = np.argwhere(d < ACTIVATION)                     # (M, 2) of (pose, sample)
@@ -282,7 +285,8 @@ class BoneCuts:
 
     def pull_in(self, loc: np.ndarray, reach: float = TRUST_START) -> np.ndarray:
         """Fixed points farther from their own bone than ``POINT_MAX + reach`` (out of one round's
-        reach) moved along the bone's normal to ``POINT_MAX`` − 2 mm; the others unchanged."""
+        reach) moved along the bone's normal to ``POINT_MAX`` − 2 mm, points nearer than ``POINT_MIN``
+        (or inside it) to ``POINT_MIN`` + 2 mm; the others unchanged."""
         out = np.array(loc, float, copy=True)
         for i, pt in enumerate(self.pam.points):
             if not self.has_mesh[i]:
@@ -290,6 +294,8 @@ class BoneCuts:
             d, c, n = self.bones.body_closest(pt.body, out[i][None])
             if d[0] > POINT_MAX + reach:
                 out[i] = c[0] + (POINT_MAX - 0.002) * n[0]
+            elif d[0] < POINT_MIN:
+                out[i] = c[0] + (POINT_MIN + 0.002) * n[0]
         return out
 
     def balls(self, loc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -360,7 +366,7 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start:
     gave any (sequential linearisation with a trust region).
 
     Each round linearises the clearance at the current route (:meth:`BoneCuts.measure`), solves the
-    problem with these elastic rows and hard balls within the trust region (starting from the fitted route:
+    problem with these rows (elastic for segments, hard for points) and hard balls within the trust region (starting from the fitted route:
     the first round is always accepted), and measures the exact distances of the result. A round that
     lowers the merit (objective + penalty × exact violation, PAM overlaps weighted by ``PAM_WEIGHT``)
     is accepted and the region grows; otherwise the region halves and the round is repeated from the
@@ -403,7 +409,8 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start:
         ubx[:3 * npt] = np.minimum(np.maximum(ubx[:3 * npt], zc), zc + rho)
         z0 = np.clip(z, lbx, ubx)
         centres, radii = cuts.balls(zc.reshape(npt, 3))
-        s, slack = prob.solve_with_rows(z0, sol.n_parallel, W, w0, lbx, ubx, centres, radii, hard_balls=True)
+        s, slack = prob.solve_with_rows(z0, sol.n_parallel, W, w0, lbx, ubx, centres, radii, hard_balls=True,
+                                        hard_rows=cuts.n_point_rows)
         ms = cuts.measure(np.array(s.points))
         m_new = s.objective + MERIT_PENALTY * ms.violation(PAM_WEIGHT)
         accept = bool(s.success) and m_new < merit

@@ -2,7 +2,7 @@
 
 The problem imposes the contraction, stretch and rated-force limits at its constraint samples (grids,
 training poses, range corners). Between them a route can still exceed a limit: held-out poses gave
-rectus femoris a contraction of 0.258 (limit 0.25) where the nearest constrained pose had 0.243. After
+rectus femoris a contraction of 0.258 (limit 0.25) where its range corners gave at most 0.243. After
 the bone-mesh rounds, :func:`limit_excess` evaluates the saved route at :data:`N_CHECK` poses of the
 coordinates it crosses (half uniform, half on the range boundary; the optimiser's own random stream,
 never the audit's); where a limit is exceeded, :func:`tighten` lowers that limit in the problem by the

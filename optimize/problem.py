@@ -333,9 +333,10 @@ class ActuatorProblem:
 
     def solve_with_rows(self, z0: np.ndarray, n_parallel: int, W: np.ndarray, w0: np.ndarray,
                         lbx: np.ndarray, ubx: np.ndarray, centres: np.ndarray | None = None,
-                        radii: np.ndarray | None = None, hard_balls: bool = False) -> tuple[Solution, float]:
-        """Solve from ``z0`` with the elastic rows ``W z + w0 ≥ 0``, the balls
-        ``|ℓ_i − centres_i| ≤ radii_i`` (route point i; ``inf``: none; elastic, or hard with
+                        radii: np.ndarray | None = None, hard_balls: bool = False,
+                        hard_rows: int = 0) -> tuple[Solution, float]:
+        """Solve from ``z0`` with the rows ``W z + w0 ≥ 0`` (elastic, the first ``hard_rows`` hard), the
+        balls ``|ℓ_i − centres_i| ≤ radii_i`` (route point i; ``inf``: none; elastic, or hard with
         ``hard_balls``) and bounds ``lbx``/``ubx`` on z (a trust region). Rows are padded to
         :data:`CUT_SLOTS` (inactive rows: 0·z + 1 ≥ 0).
 
@@ -357,14 +358,16 @@ class ActuatorProblem:
         c[inactive] = 0.0
         r2 = np.where(inactive, 1e6, r ** 2)
         pts = z0[:3 * npt].reshape(npt, 3)
-        slack0 = np.concatenate([np.maximum(-(Wp @ z0 + w0p), 0.0),
+        row_ub = np.full(k, np.inf)
+        row_ub[:hard_rows] = 0.0
+        slack0 = np.concatenate([np.minimum(np.maximum(-(Wp @ z0 + w0p), 0.0), row_ub),
                                  np.zeros(npt) if hard_balls else np.maximum(np.sum((pts - c) ** 2, axis=1) - r2, 0.0)])
         solver = self.cut_solver(k)
         lbg = np.where(self._capsule_rows(), -np.inf, self.lbg)     # the mesh rows replace the capsules
         res = solver(x0=np.concatenate([z0, slack0]),
                      p=np.concatenate([[n_parallel], Wp.ravel(order="F"), w0p, c.ravel(), r2]),
                      lbx=np.concatenate([lbx, np.zeros(k + npt)]),
-                     ubx=np.concatenate([ubx, np.full(k, np.inf), np.zeros(npt) if hard_balls else np.full(npt, np.inf)]),
+                     ubx=np.concatenate([ubx, row_ub, np.zeros(npt) if hard_balls else np.full(npt, np.inf)]),
                      lbg=np.concatenate([lbg, np.zeros(k + npt)]),
                      ubg=np.concatenate([self.ubg, np.full(k + npt, np.inf)]))
         stats = solver.stats()
