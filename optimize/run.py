@@ -154,7 +154,7 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     return _result(pam, data, best_problem[0], best, attempts, t0, bone)
 
 
-#: Rounds of the held-out limit check after the bone-mesh stage (optimize.limit_check).
+#: Held-out limit checks of an actuator (optimize.limit_check): before the bone-mesh rounds, then after them.
 LIMIT_CHECK_ROUNDS = 2
 
 
@@ -169,27 +169,41 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
                     *bone_check_poses(_STATE["human"], _STATE["rom"], pam, cfg.seed, crossed=prob.data.crossed))
     lines: list[str] = []
     before = best
-    best, measure, info = bone_stage(prob, best, cuts, cfg.bone_rounds, lines, keep_start=best.status == "given")
-    # the strain and force limits on many more poses; where one is exceeded, tighten it and run again
+    # the strain and force limits on many more poses than the problem's samples (optimize.limit_check):
+    # where the start exceeds one, it is tightened before the rounds; where their result still does, once
+    # more and the rounds again. The problem's own limits are restored afterwards (the tightening is a
+    # margin of this search, not a different problem: the saved result is checked against the real limits)
     from .limit_check import check_poses, limit_excess, tighten  # noqa: PLC0415
 
     q_check = check_poses(_STATE["human"], _STATE["rom"], prob.data.crossed or [pam.primary_coordinate],
                           cfg.seed, pam.id)
-    for _ in range(LIMIT_CHECK_ROUNDS):
-        excess = limit_excess(solution_pam(pam, prob.finalize(best)), _STATE["human"], q_check, cfg,
-                              prob.data.fitting_length)
+    limits = (prob.lbg.copy(), prob.ubg.copy())
+
+    def excess_of(sol) -> dict:
+        return limit_excess(solution_pam(pam, prob.finalize(sol)), _STATE["human"], q_check, cfg,
+                            prob.data.fitting_length)
+
+    def note(excess: dict, what: str) -> None:
+        lines.append(f"  limit check on {len(q_check)} more poses: " + "; ".join(
+            f"{k} exceeded by {v:.4g}" for k, v in excess.items()) + f"; {what}")
+
+    excess = excess_of(best)
+    if excess:
+        note(excess, "limits tightened before the bone rounds")
+        tighten(prob, excess)
+    best, measure, info = bone_stage(prob, best, cuts, cfg.bone_rounds, lines, keep_start=best.status == "given")
+    for _ in range(LIMIT_CHECK_ROUNDS - 1):
+        excess = excess_of(best)
         if not excess:
             break
-        lines.append("  limit check on %d more poses: %s; limits tightened, bone rounds again" % (
-            len(q_check), "; ".join(f"{k} exceeded by {v:.4g}" for k, v in excess.items())))
+        note(excess, "limits tightened, bone rounds again")
         tighten(prob, excess)
         best, measure, more = bone_stage(prob, best, cuts, cfg.bone_rounds, lines)
         info += more
-    else:
-        excess = limit_excess(solution_pam(pam, prob.finalize(best)), _STATE["human"], q_check, cfg,
-                              prob.data.fitting_length)
-        if excess:
-            lines.append("  limit check: still exceeded: " + "; ".join(f"{k} by {v:.4g}" for k, v in excess.items()))
+    prob.lbg, prob.ubg = limits
+    excess = excess_of(best)
+    if excess:
+        lines.append("  limit check: still exceeded: " + "; ".join(f"{k} by {v:.4g}" for k, v in excess.items()))
     bone = _bone_info(cuts, before, measure, info, lines, [p.name for p in pam.points])
     bone.update(objective_before=float(before.objective), objective_after=float(best.objective))
     return best, bone
