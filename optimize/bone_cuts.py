@@ -436,3 +436,46 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start:
             if rho < TRUST_MIN:
                 break
     return best, best_m, info
+
+
+def push_out(prob, sol, cuts: BoneCuts):
+    """The fixed points of ``sol`` inside their own bone (exact distance < 0; the rounds' point rows hold
+    only in their linearisation, and a curved bone can leave a point just inside) moved out along the
+    bone's normal to ``POINT_MIN`` (where the problem's own constraints then fail, its resting and tendon
+    lengths are solved again with the points fixed). Kept only when the problem's own constraints hold
+    there and the exact bone violation (points and segments) does not grow.
+
+    Returns:
+        ``(solution, measure, moved)``: the moved solution and its :class:`Measure`, or ``sol`` and its
+        own measure when nothing was inside or the move was not kept; ``moved`` names the moved points
+        (empty: none moved; a last entry ``"not kept: ..."`` says why a move was refused).
+    """
+    loc = np.array(sol.points, float)
+    moved = []
+    for i, pt in enumerate(cuts.pam.points):
+        if not cuts.has_mesh[i]:
+            continue
+        d, c, n = cuts.bones.body_closest(pt.body, loc[i][None])
+        if d[0] < 0:
+            loc[i] = c[0] + POINT_MIN * n[0]
+            moved.append(pt.name)
+    m0 = cuts.measure(np.array(sol.points, float))
+    if not moved:
+        return sol, m0, []
+    z = sol.z.copy()
+    z[:3 * cuts.n_points] = loc.ravel()
+    s = prob.evaluate(z, sol.n_parallel)
+    if not s.success:        # the moved points fixed, the resting and tendon lengths solved again
+        lbx, ubx = prob.lbx.copy(), prob.ubx.copy()
+        lbx[:3 * cuts.n_points] = ubx[:3 * cuts.n_points] = loc.ravel()
+        nz = len(z)
+        s, _ = prob.solve_with_rows(z, sol.n_parallel, np.zeros((0, nz)), np.zeros(0), lbx, ubx)
+    m1 = cuts.measure(loc)
+    if not (s.success and m1.violation(0.0) <= m0.violation(0.0)):
+        worst = max(s.violations.items(), key=lambda kv: kv[1], default=("", 0.0))
+        why = (f"{worst[0]} violated by {worst[1]:.3g}" if not s.success else
+               f"bone violation {1e3 * m0.violation(0.0):.1f} -> {1e3 * m1.violation(0.0):.1f} mm")
+        return sol, m0, [*moved, f"not kept: {why}"]
+    s.status = sol.status
+    return s, m1, moved
+

@@ -163,7 +163,7 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
     start taken as given (already through these rounds in its run) stays unless a round beats it."""
     if not (cfg.bone_mesh and best.success):
         return best, {}
-    from .bone_cuts import BoneCuts, bone_check_poses, bone_stage  # noqa: PLC0415
+    from .bone_cuts import POINT_MIN, BoneCuts, bone_check_poses, bone_stage, push_out  # noqa: PLC0415
 
     cuts = BoneCuts(pam, _STATE["human"], _STATE["bones"],
                     *bone_check_poses(_STATE["human"], _STATE["rom"], pam, cfg.seed, crossed=prob.data.crossed))
@@ -201,6 +201,13 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
         best, measure, more = bone_stage(prob, best, cuts, cfg.bone_rounds, lines)
         info += more
     prob.lbg, prob.ubg = limits
+    best, pushed, moved = push_out(prob, best, cuts)
+    if moved and moved[-1].startswith("not kept"):
+        lines.append(f"  points {', '.join(moved[:-1])} inside their bone: moving them out to "
+                     f"{1e3 * POINT_MIN:.0f} mm {moved[-1]}")
+    elif moved:
+        measure = pushed
+        lines.append(f"  points {', '.join(moved)} moved out of their bone to {1e3 * POINT_MIN:.0f} mm")
     excess = excess_of(best)
     if excess:
         lines.append("  limit check: still exceeded: " + "; ".join(f"{k} by {v:.4g}" for k, v in excess.items()))

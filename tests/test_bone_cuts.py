@@ -12,7 +12,7 @@ import trimesh
 import pamkin
 from pamkin.bones import BoneSet
 from pamkin.design import Design, Pam
-from pamkin.optimize.bone_cuts import POINT_MAX, POINT_MIN, BoneCuts, bone_stage
+from pamkin.optimize.bone_cuts import POINT_MAX, POINT_MIN, BoneCuts, bone_stage, push_out
 from pamkin.optimize.config import FAST_FIT, RunConfig
 from pamkin.optimize.problem import ActuatorProblem
 from pamkin.optimize.samples import actuator_data
@@ -110,6 +110,20 @@ def test_mesh_rows_keep_a_toy_route_out_of_a_toy_mesh():
     # a warm start in bone is still moved out of it
     moved, m_moved, _ = bone_stage(prob, prob.evaluate(sol.z, 1), cuts, rounds=12, keep_start=True)
     assert m_moved.violation() < 0.2 * before.violation()
+
+    # push_out: a cleared route with its insertion put 1 mm inside its block is moved back out, exactly to
+    # POINT_MIN along the normal (independent distance), when the problem's own constraints allow it
+    z = best.z.copy()
+    d, c, n = bones.body_closest("arm", np.array([best.points[1]]))
+    z[3:6] = c[0] - 0.001 * n[0]
+    inside = prob.evaluate(z, 1)
+    assert bones.body_signed_distance("arm", np.array([inside.points[1]]))[0] == pytest.approx(-0.001, abs=1e-9)
+    out, m_out, names = push_out(prob, inside, cuts)
+    assert names == ["i"] and out.success
+    assert bones.body_signed_distance("arm", np.array([out.points[1]]))[0] == pytest.approx(POINT_MIN, abs=1e-9)
+    assert m_out.violation() <= cuts.measure(np.array(inside.points)).violation()
+    same, _, none = push_out(prob, best, cuts)              # nothing inside: unchanged
+    assert same is best and none == []
 
 
 def test_bone_mesh_config_keys(tmp_path):
