@@ -20,7 +20,8 @@ from pamkin.design import Pam
 from pamkin.errors import RangeWarning
 from pamkin.paths import PathSet
 
-from .samples import OPTIMIZE_STREAM, STRAIN_MARGIN, boundary_poses, with_dependencies
+from .samples import (OPTIMIZE_STREAM, RATED_MARGIN, STRAIN_MARGIN, boundary_poses, poses_from_unit,
+                      with_dependencies)
 
 #: Check poses per actuator (half uniform, half on the range boundary).
 N_CHECK = 2000
@@ -37,31 +38,39 @@ def check_poses(model, rom, coords: list[str], seed: int, actuator: int, n: int 
     """``n`` poses of ``coords``: half uniform within the range, half on its boundary (others 0)."""
     rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(OPTIMIZE_STREAM, int(actuator), 3)))
     coords = with_dependencies(model, rom, coords)
-    q = np.zeros((n - n // 2, len(model.coordinates)))
-    for c, v in rom.from_unit(coords, rng.random((len(q), len(coords)))).items():
-        q[:, model.coordinates.index(c)] = v
-    return np.vstack([q, boundary_poses(model, rom, coords, rng, n // 2)])
+    uniform = poses_from_unit(model, rom, coords, rng.random((n - n // 2, len(coords))))
+    return np.vstack([uniform, boundary_poses(model, rom, coords, rng, n // 2)])
+
+
+def limit_rows(cfg, diameter: int, strain, unit_force, kmax) -> list[tuple]:
+    """The strain and force limits of one PAM as rows ``(family, g, lower, upper)`` with lower ≤ g ≤ upper:
+    contraction ≤ kmax (scaled) and stretch ≤ Festo's pretension, and with ``cfg.rated_force`` force per
+    PAM ≤ 98 % of Festo's rating and contraction ≤ Festo's maximum, each less its margin. ``strain``,
+    ``unit_force`` [N] and ``kmax`` are numpy arrays or CasADi expressions alike: the one definition of
+    these limits for the problem (:class:`optimize.problem.ActuatorProblem`) and for :func:`limit_excess`."""
+    pre = max(cfg.pretension_scale * festo.max_pretension(diameter) - STRAIN_MARGIN, 0.0)
+    rows = [(CONTRACTION_KMAX, strain - (cfg.kmax_scale * kmax - STRAIN_MARGIN), -np.inf, 0.0),
+            (STRETCH, strain, -pre, np.inf)]
+    if cfg.rated_force:
+        rows.append((RATED, unit_force - festo.F_MAX_THEORETICAL[diameter] * (1.0 - RATED_MARGIN), -np.inf, 0.0))
+        # Festo's permissible contraction (0.25) is below the force model's kmax for 20 and 40 mm
+        rows.append((CONTRACTION_FESTO, strain, -np.inf, festo.max_contraction(diameter) - STRAIN_MARGIN))
+    return rows
 
 
 def limit_excess(pam: Pam, model, q: np.ndarray, cfg, fitting_length: float) -> dict[str, float]:
     """By how much the PAM ``pam`` (its route, sizes, diameter, parallel count) exceeds each limit of
-    the problem at the poses ``q`` (the same limits and margins as :class:`optimize.problem.ActuatorProblem`);
-    only the exceeded ones, in the rows' units (strain, or N per PAM)."""
-    from .problem import RATED_MARGIN  # noqa: PLC0415  (casadi: workers only)
-
+    the problem (:func:`limit_rows`) at the poses ``q``; only the exceeded ones, in the rows' units
+    (strain, or N per PAM)."""
     kin = model.kinematics
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RangeWarning)
         L = PathSet(kin, ["route"], [pam.points]).evaluate(kin.forward(q, warn_range=False)).lengths[:, 0]
     l0, d = pam.resting_length_m, pam.diameter_mm
     eps = (l0 - (L - 2 * fitting_length - pam.tendon_length_m)) / l0
-    kmax = float(festo.kmax(l0, d, model=cfg.force_model))
-    out = {CONTRACTION_KMAX: float(eps.max() - (cfg.kmax_scale * kmax - STRAIN_MARGIN)),
-           STRETCH: float(-eps.min() - max(cfg.pretension_scale * festo.max_pretension(d) - STRAIN_MARGIN, 0.0))}
-    if cfg.rated_force:
-        out[CONTRACTION_FESTO] = float(eps.max() - (festo.max_contraction(d) - STRAIN_MARGIN))
-        F = festo.force(eps, l0, cfg.pressure_Pa, d, model=cfg.force_model)
-        out[RATED] = float(np.max(F) - festo.F_MAX_THEORETICAL[d] * (1.0 - RATED_MARGIN))
+    F = festo.force(eps, l0, cfg.pressure_Pa, d, model=cfg.force_model)
+    out = {fam: float(max(np.max(g) - hi, lo - np.min(g)))
+           for fam, g, lo, hi in limit_rows(cfg, d, eps, F, float(festo.kmax(l0, d, model=cfg.force_model)))}
     return {k: v for k, v in out.items() if v > 1e-9}
 
 

@@ -31,7 +31,8 @@ from pamkin import festo
 from pamkin.paths import path_length, path_moment_arm, point_velocity
 
 from .config import RunConfig
-from .samples import CLEARANCE_MARGIN, CLEARANCE_T, STRAIN_MARGIN, ActuatorData, is_free
+from .limit_check import limit_rows
+from .samples import CLEARANCE_MARGIN, CLEARANCE_T, ActuatorData, is_free
 
 
 @dataclass
@@ -70,7 +71,6 @@ CUT_SLOTS = 320
 BALL_PENALTY_SCALE = 40.0
 #: Largest constraint violation (in each row's own units: m, N, -) of a solution counted as feasible.
 FEASIBILITY_TOL = 1e-6
-RATED_MARGIN = 0.02              # force below 98 % of the rated force
 SEGMENT_MARGIN = 0.002           # [m] the PAM clears its segment's ends
 
 
@@ -158,20 +158,9 @@ class ActuatorProblem:
         g, lbg, ubg, fam = [], [], [], []
         ci = [int(s) for s in data.constraint_idx]
         eps_c = self.strain[0, ci]
-        kmax_lim = cfg.kmax_scale * self.kmax - STRAIN_MARGIN
-        g.append((eps_c - kmax_lim).T); lbg += [-np.inf] * len(ci); ubg += [0.0] * len(ci)
-        fam += ["contraction <= kmax"] * len(ci)
-        pre = max(cfg.pretension_scale * festo.max_pretension(diameter) - STRAIN_MARGIN, 0.0)
-        g.append(eps_c.T); lbg += [-pre] * len(ci); ubg += [np.inf] * len(ci)
-        fam += ["stretch <= Festo pretension limit"] * len(ci)
-        if cfg.rated_force:
-            rated = festo.F_MAX_THEORETICAL[diameter] * (1.0 - RATED_MARGIN)
-            g.append((self.unit_force[0, ci] - rated).T); lbg += [-np.inf] * len(ci); ubg += [0.0] * len(ci)
-            fam += ["force per PAM <= Festo rated force"] * len(ci)
-            # Festo's permissible contraction (0.25) is below the force model's kmax for 20 and 40 mm
-            g.append(eps_c.T); lbg += [-np.inf] * len(ci)
-            ubg += [festo.max_contraction(diameter) - STRAIN_MARGIN] * len(ci)
-            fam += ["contraction <= Festo maximum contraction"] * len(ci)
+        for family, expr, lo, hi in limit_rows(cfg, diameter, eps_c, self.unit_force[0, ci], self.kmax):
+            g.append(expr.T); lbg += [lo] * len(ci); ubg += [hi] * len(ci)
+            fam += [family] * len(ci)
         if cfg.sensitivity_pct > 0 and "sensitivity" not in relax:
             # a 1 mm error of any body-fixed attachment point moves the primary torque on its 1-D sweep
             # by at most sensitivity_pct % of the human peak: |∂τ/∂ℓ_i| · 1 mm <= limit at every sweep

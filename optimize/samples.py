@@ -29,6 +29,7 @@ CAPSULES_FILE = data_file("bone_capsules.yaml")
 CLEARANCE_T = (0.15, 0.325, 0.5, 0.675, 0.85)
 #: Margins the optimiser keeps from its limits, so that the limits also hold between samples.
 STRAIN_MARGIN = 0.005           # contraction / stretch [-]
+RATED_MARGIN = 0.02             # force below 98 % of the rated force
 CLEARANCE_MARGIN = 0.006        # bone clearance [m]
 
 
@@ -274,15 +275,21 @@ def with_dependencies(model: Model, rom: RangeOfMotion, coords: list[str]) -> li
     return coords
 
 
+def poses_from_unit(model: Model, rom: RangeOfMotion, coords: list[str], u: np.ndarray) -> np.ndarray:
+    """(N, n_coordinates) poses with ``coords`` placed in their range by the numbers ``u`` (N, len(coords))
+    in [0, 1] (:meth:`pamkin.rom.RangeOfMotion.from_unit`), every other coordinate 0."""
+    q = np.zeros((len(u), len(model.coordinates)))
+    for c, v in rom.from_unit(coords, u).items():
+        q[:, model.coordinates.index(c)] = v
+    return q
+
+
 def training_poses(model: Model, rom: RangeOfMotion, coords: list[str], n: int, seed: int, actuator: int) -> np.ndarray:
     """``n`` random poses varying ``coords`` (and the coordinates their coupled limits depend on)
     uniformly within ``rom``, others 0; stream :data:`OPTIMIZE_STREAM` (never the audit's)."""
     rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(OPTIMIZE_STREAM, int(actuator))))
     coords = with_dependencies(model, rom, coords)
-    q = np.zeros((n, len(model.coordinates)))
-    for c, v in rom.from_unit(coords, rng.random((n, len(coords)))).items():
-        q[:, model.coordinates.index(c)] = v
-    return q
+    return poses_from_unit(model, rom, coords, rng.random((n, len(coords))))
 
 
 #: Largest number of range-of-motion corners among an actuator's constraint samples.
@@ -302,10 +309,7 @@ def corner_poses(model: Model, rom: RangeOfMotion, coords: list[str], seed: int,
     if len(U) > max_n:
         rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(OPTIMIZE_STREAM, int(actuator), 1)))
         U = U[np.sort(rng.choice(len(U), max_n, replace=False))]
-    q = np.zeros((len(U), len(model.coordinates)))
-    for c, v in rom.from_unit(coords, U).items():
-        q[:, model.coordinates.index(c)] = v
-    return q
+    return poses_from_unit(model, rom, coords, U)
 
 
 def boundary_poses(model: Model, rom: RangeOfMotion, coords: list[str], rng: np.random.Generator,
@@ -319,10 +323,7 @@ def boundary_poses(model: Model, rom: RangeOfMotion, coords: list[str], rng: np.
     pick = rng.random((n, len(coords)))
     u[pick < 1 / 3] = 0.0
     u[pick > 2 / 3] = 1.0
-    q = np.zeros((n, len(model.coordinates)))
-    for c, v in rom.from_unit(coords, u).items():
-        q[:, model.coordinates.index(c)] = v
-    return q
+    return poses_from_unit(model, rom, coords, u)
 
 
 def gait_training_poses(model: Model, ik_path=None, stride: int = GAIT_STRIDE) -> np.ndarray:
