@@ -62,6 +62,11 @@ N_BOUNDARY = 100
 BONE_STREAM = 0xA0D3
 
 
+#: Largest number of alternating moves onto the bracket band and off the midline in :meth:`BoneCuts.pull_in`.
+PULL_ITERATIONS = 8
+#: A point this close [m] below its ``zmin`` meets it (IPOPT's solutions hold their rows to ~1e-7).
+ZMIN_TOLERANCE = 1e-5
+
 #: Trust region of the point coordinates [m]: start, largest, and the size below which the rounds stop.
 TRUST_START = 0.02
 TRUST_MAX = 0.03
@@ -283,19 +288,29 @@ class BoneCuts:
             return np.zeros((0, nz)), np.zeros(0)
         return np.array(W), np.array(w0)
 
-    def pull_in(self, loc: np.ndarray, reach: float = TRUST_START) -> np.ndarray:
+    def pull_in(self, loc: np.ndarray, reach: float = TRUST_START, zmin: np.ndarray | None = None) -> np.ndarray:
         """Fixed points farther from their own bone than ``POINT_MAX + reach`` (out of one round's
         reach) moved along the bone's normal to ``POINT_MAX`` − 2 mm, points nearer than ``POINT_MIN``
-        (or inside it) to ``POINT_MIN`` + 2 mm; the others unchanged."""
+        (or inside it) to ``POINT_MIN`` + 2 mm; the others unchanged. ``zmin`` (per point, ``-inf``:
+        none; :attr:`optimize.problem.ActuatorProblem.zmin`) also moves points with a smaller body-frame
+        z to ``zmin`` + 2 mm (room for the left copy), alternating with the band until both hold."""
         out = np.array(loc, float, copy=True)
         for i, pt in enumerate(self.pam.points):
             if not self.has_mesh[i]:
                 continue
-            d, c, n = self.bones.body_closest(pt.body, out[i][None])
-            if d[0] > POINT_MAX + reach:
-                out[i] = c[0] + (POINT_MAX - 0.002) * n[0]
-            elif d[0] < POINT_MIN:
-                out[i] = c[0] + (POINT_MIN + 0.002) * n[0]
+            lo = -np.inf if zmin is None else float(zmin[i])
+            far = POINT_MAX + reach
+            for _ in range(PULL_ITERATIONS):
+                d, c, n = self.bones.body_closest(pt.body, out[i][None])
+                if d[0] > far:
+                    out[i] = c[0] + (POINT_MAX - 0.002) * n[0]
+                elif d[0] < POINT_MIN:
+                    out[i] = c[0] + (POINT_MIN + 0.002) * n[0]
+                elif out[i][2] >= lo - ZMIN_TOLERANCE:
+                    break
+                if out[i][2] < lo - ZMIN_TOLERANCE:
+                    out[i][2] = lo + 0.002
+                    far = POINT_MAX          # once moved off the midline, back onto the band proper
         return out
 
     def balls(self, loc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -360,6 +375,12 @@ def _violation_key(m: Measure) -> int:
     return int(m.violation(0.0) // VIOLATION_RESOLUTION)
 
 
+def stage_key(m: Measure, sol) -> tuple:
+    """Order of bone-stage results: fewest bone violations first (whole millimetres), then the least PAM
+    overlap, then the lowest objective."""
+    return (_violation_key(m), round(m.pam_overlap(), 4), float(sol.objective))
+
+
 def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start: bool = False):
     """Move a solved route clear of bone, and of the obstacle PAM bodies if :meth:`BoneCuts.set_obstacles`
     gave any (sequential linearisation with a trust region).
@@ -390,10 +411,11 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start:
     npt = cuts.n_points
     m0 = cuts.measure(np.array(sol.points))
     best, best_m = sol, m0
-    best_key = (_violation_key(m0), round(m0.pam_overlap(), 4), sol.objective)
+    best_key = stage_key(m0, sol)
     info = [{"round": 0, "violation_mm": round(1e3 * m0.violation(), 3), "objective": float(sol.objective)}]
     z = sol.z.copy()        # rows are elastic, the bracket balls hard: the first round starts from the fitted
-    z[:3 * npt] = cuts.pull_in(np.array(sol.points), reach=0.0).ravel()   # route, points beyond the bracket pulled in
+    z[:3 * npt] = cuts.pull_in(np.array(sol.points), reach=0.0,    # route, points beyond the bracket pulled in
+                               zmin=getattr(prob, "zmin", None)).ravel()
     merit = np.inf                   # accept the first round
     merit_violation = np.inf
     if keep_start and sol.success:   # ... unless the start is a candidate itself
@@ -421,7 +443,7 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start:
                        f"violation {1e3 * ms.violation():.2f} mm, objective {s.objective:.4g}"
                        f"{'' if accept else ' (rejected)'}")
         if accept:
-            key = (_violation_key(ms), round(ms.pam_overlap(), 4), s.objective)
+            key = stage_key(ms, s)
             if not best.success or (best is sol and not keep_start) or key < best_key:
                 best, best_m, best_key = s, ms, key
             step = float(np.max(np.abs(s.z[:3 * npt] - zc)))
@@ -437,18 +459,70 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start:
     return best, best_m, info
 
 
+#: Distances [m] outside the bone that :func:`push_out` tries, in this order, for a point left inside it.
+PUSH_TARGETS = (POINT_MIN, 0.002, 0.001, 0.0005)
+#: How far [m] :func:`push_out` may move the route's other points when the moved ones alone break a limit.
+PUSH_REACH = 0.005
+
+
 def push_out(prob, sol, cuts: BoneCuts):
     """The fixed points of ``sol`` inside their own bone (exact distance < 0; the rounds' point rows hold
     only in their linearisation, and a curved bone can leave a point just inside) moved out along the
-    bone's normal to ``POINT_MIN`` (where the problem's own constraints then fail, its resting and tendon
-    lengths are solved again with the points fixed). Kept only when the problem's own constraints hold
-    there and the exact bone violation (points and segments) does not grow.
+    bone's normal (where that lands inside another of the body's meshes, along the shortest way out,
+    :func:`exit_point`) to ``POINT_MIN`` or, where the problem's constraints fail there, to the nearer distances
+    of :data:`PUSH_TARGETS` (where the problem's own constraints fail with the moved points, its resting
+    and tendon lengths are solved again with the points fixed, and failing that the route's other points
+    too, within :data:`PUSH_REACH`, with the bone rows and brackets of a round). A move is kept only when
+    the problem's own constraints hold there, no point is inside its bone and the exact bone violation
+    (points and segments) does not grow.
 
     Returns:
-        ``(solution, measure, moved)``: the moved solution and its :class:`Measure`, or ``sol`` and its
-        own measure when nothing was inside or the move was not kept; ``moved`` names the moved points
-        (empty: none moved; a last entry ``"not kept: ..."`` says why a move was refused).
+        ``(solution, measure, moved, outcome)``: the moved solution and its :class:`Measure`, or ``sol``
+        and its own measure when nothing was inside or no move was kept; ``moved`` names the points that
+        were inside (empty: none); ``outcome`` is ``"moved out to X mm"`` or ``"not moved out: ..."`` (why
+        the nearest move was refused).
     """
+    m0 = cuts.measure(np.array(sol.points, float))
+    moved, why = [], ""
+    for target in PUSH_TARGETS:
+        s, m1, moved, why = _push_to(prob, sol, cuts, m0, target)
+        if not moved:
+            return sol, m0, [], ""
+        if not why:
+            return s, m1, moved, f"moved out to {1e3 * target:g} mm"
+    return sol, m0, moved, f"not moved out (even to {1e3 * PUSH_TARGETS[-1]:g} mm: {why})"
+
+
+#: Directions and step [m] of the search for the nearest way out of a bone (:func:`exit_point`).
+EXIT_DIRECTIONS = 400
+EXIT_STEP = 0.00025
+EXIT_REACH = 0.025
+
+
+def _sphere(n: int) -> np.ndarray:
+    """``n`` near-uniform unit vectors (Fibonacci sphere)."""
+    i = np.arange(n) + 0.5
+    polar, azimuth = np.arccos(1.0 - 2.0 * i / n), np.pi * (1.0 + 5.0 ** 0.5) * i
+    return np.c_[np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar), np.cos(polar)]
+
+
+def exit_point(bones, body: str, x: np.ndarray, target: float) -> np.ndarray | None:
+    """The nearest point found to ``x`` (body frame [m]) at least ``target`` m outside ``body``'s bone,
+    searched along :data:`EXIT_DIRECTIONS` rays in :data:`EXIT_STEP` steps up to :data:`EXIT_REACH`
+    (``None`` when no ray gets there). A bone of several overlapping meshes (the pelvis halves and the
+    sacrum) can hold a point whose nearest surface point is not the way out: there the move along the
+    normal lands inside the other mesh."""
+    steps = np.arange(1, int(round(EXIT_REACH / EXIT_STEP)) + 1) * EXIT_STEP
+    dirs = _sphere(EXIT_DIRECTIONS)
+    pts = x[None, None, :] + steps[None, :, None] * dirs[:, None, :]
+    ok = (bones.body_signed_distance(body, pts.reshape(-1, 3)) >= target).reshape(len(dirs), len(steps))
+    first = np.where(ok.any(axis=1), ok.argmax(axis=1), len(steps))
+    j = int(np.argmin(first))
+    return None if first[j] == len(steps) else x + steps[first[j]] * dirs[j]
+
+
+def _push_to(prob, sol, cuts: BoneCuts, m0: Measure, target: float):
+    """One :func:`push_out` attempt at ``target`` m: ``(solution, measure, moved names, why refused)``."""
     loc = np.array(sol.points, float)
     moved = []
     for i, pt in enumerate(cuts.pam.points):
@@ -456,11 +530,15 @@ def push_out(prob, sol, cuts: BoneCuts):
             continue
         d, c, n = cuts.bones.body_closest(pt.body, loc[i][None])
         if d[0] < 0:
-            loc[i] = c[0] + POINT_MIN * n[0]
+            out = c[0] + target * n[0]
+            if cuts.bones.body_signed_distance(pt.body, out[None])[0] < target - 1e-9:
+                out = exit_point(cuts.bones, pt.body, loc[i], target)
+                if out is None:
+                    return sol, m0, [pt.name], f"no way out within {1e3 * EXIT_REACH:g} mm"
+            loc[i] = out
             moved.append(pt.name)
-    m0 = cuts.measure(np.array(sol.points, float))
     if not moved:
-        return sol, m0, []
+        return sol, m0, [], ""
     z = sol.z.copy()
     z[:3 * cuts.n_points] = loc.ravel()
     s = prob.evaluate(z, sol.n_parallel)
@@ -469,12 +547,27 @@ def push_out(prob, sol, cuts: BoneCuts):
         lbx[:3 * cuts.n_points] = ubx[:3 * cuts.n_points] = loc.ravel()
         nz = len(z)
         s, _ = prob.solve_with_rows(z, sol.n_parallel, np.zeros((0, nz)), np.zeros(0), lbx, ubx)
+    if not s.success:        # ... and the other points free within PUSH_REACH, with the bone rows of a round
+        _, (W, w0) = cuts.measure(loc, with_rows=True)
+        flat = loc.ravel()
+        lbx, ubx = prob.lbx.copy(), prob.ubx.copy()
+        lbx[:len(flat)], ubx[:len(flat)] = flat - PUSH_REACH, flat + PUSH_REACH
+        for i, pt in enumerate(cuts.pam.points):
+            if pt.name in moved:
+                lbx[3 * i:3 * i + 3] = ubx[3 * i:3 * i + 3] = loc[i]
+        centres, radii = cuts.balls(loc)
+        s, _ = prob.solve_with_rows(s.z if np.all(np.isfinite(s.z)) else z, sol.n_parallel, W, w0, lbx, ubx,
+                                    centres, radii, hard_balls=True)
+        loc = np.array(s.points, float)
     m1 = cuts.measure(loc)
+    still = [cuts.pam.points[i].name for i in range(cuts.n_points) if cuts.has_mesh[i]
+             and cuts.bones.body_signed_distance(cuts.pam.points[i].body, loc[i][None])[0] < 0]
+    if still:
+        return sol, m0, moved, f"{', '.join(still)} still inside"
     if not (s.success and m1.violation(0.0) <= m0.violation(0.0)):
         worst = max(s.violations.items(), key=lambda kv: kv[1], default=("", 0.0))
         why = (f"{worst[0]} violated by {worst[1]:.3g}" if not s.success else
                f"bone violation {1e3 * m0.violation(0.0):.1f} -> {1e3 * m1.violation(0.0):.1f} mm")
-        return sol, m0, [*moved, f"not kept: {why}"]
+        return sol, m0, moved, why
     s.status = sol.status
-    return s, m1, moved
-
+    return s, m1, moved, ""

@@ -52,6 +52,8 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
     bone_mesh = true             # (v2) attachment points on their bone (3..18 mm out), segments clear of the
                                  #      real bone meshes at random, sweep and gait poses (optimize.bone_cuts)
     bone_rounds = 10             # (v2) largest number of re-linearisation rounds of the bone-mesh rows
+    bone_seed_start = true       # (v2) the bone-mesh rounds also start from the seed route (points moved onto
+                                 #      their bone's 3..18 mm band); the better of the two results is kept
     pam_clearance = false        # (v2, with bone_mesh) second pass: routes that hit another PAM's body are
                                  #      solved again with the first-pass bodies as obstacles
     max_units = 60               # (v2) PAM units of the whole robot (both sides; 0: no limit): the diameter
@@ -81,6 +83,7 @@ _SECTIONS = {
                "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths",
                "move_moving_points": "move_moving_points", "rated_force": "rated_force",
                "one_segment": "one_segment", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
+               "bone_seed_start": "bone_seed_start",
                "max_units": "max_units",
                "pam_clearance": "pam_clearance"},
 }
@@ -139,6 +142,7 @@ class RunConfig:
     sensitivity_pct: float = 9.0
     bone_mesh: bool = True
     bone_rounds: int = 10
+    bone_seed_start: bool = True
     pam_clearance: bool = False
     max_units: int = 60
     regions: dict[str, float | list[float]] = field(default_factory=dict)

@@ -28,6 +28,7 @@ import casadi as ca
 import numpy as np
 
 from pamkin import festo
+from pamkin.design import mirror_name
 from pamkin.paths import path_length, path_moment_arm, point_velocity
 
 from .config import RunConfig
@@ -72,6 +73,7 @@ BALL_PENALTY_SCALE = 40.0
 #: Largest constraint violation (in each row's own units: m, N, -) of a solution counted as feasible.
 FEASIBILITY_TOL = 1e-6
 SEGMENT_MARGIN = 0.002           # [m] the PAM clears its segment's ends
+MIDLINE_MARGIN = 0.001           # [m] a point on a shared body (pelvis, torso) clears its left copy by 2x this
 
 
 def _norm_rows(d):
@@ -227,14 +229,32 @@ class ActuatorProblem:
                     lbg += [need ** 2] * len(cc)
                     ubg += [np.inf] * len(cc)
                     fam += [f"segment {a + 1}-{a + 2} clears {cap.name}"] * len(cc)
+        # the left side is the mirror image (z -> -z): a point on a body both sides share (pelvis, torso)
+        # keeps its PAM clear of its own left copy (z >= Festo's outer PAM radius + margin, as the audit
+        # measures it; the segment between two such points then too, and over lumbar motion both copies
+        # move with the same bodies)
+        self.midline = festo.outer_diameter(diameter) / 2 + MIDLINE_MARGIN
+        #: (n_points,) smallest body-frame z of each route point [m] (-inf: no such row)
+        self.zmin = np.full(len(pts), -np.inf)
+        for i, pt in enumerate(pts):
+            if data.mirrored and i not in self.moving and mirror_name(pt.body) == pt.body:
+                self.zmin[i] = self.midline
+                g.append(loc[i][2])
+                lbg += [self.midline]
+                ubg += [np.inf]
+                fam += [f"{pt.name} leaves room for its left copy (z >= PAM outer radius + {1e3 * MIDLINE_MARGIN:g} mm)"]
         self.g = ca.vertcat(*g)
         self.lbg, self.ubg, self.family = np.array(lbg), np.array(ubg), fam
         # variable bounds
         lbx, ubx = [], []
         for i in self.free:
             r = np.asarray(regions[i], float)
-            lbx += list(self.seed[i] - r)
-            ubx += list(self.seed[i] + r)
+            lo, hi = self.seed[i] - r, self.seed[i] + r
+            if data.mirrored and i not in self.moving and mirror_name(pts[i].body) == pts[i].body and r[2] > 0:
+                # room on the right of the midline (row above) even for a seed on or across it
+                hi[2] = max(hi[2], self.midline + r[2])
+            lbx += list(lo)
+            ubx += list(hi)
         lmin, lmax = festo.nominal_length_range(diameter)
         if cfg.fix_lengths:
             rest, tendon = data.pam.resting_length_m, max(data.pam.tendon_length_m, 0.0)
@@ -254,8 +274,8 @@ class ActuatorProblem:
     def initial_guess(self, points: list[np.ndarray], rest: float | None, tendon: float | None) -> np.ndarray:
         """Start vector: given points; l0 and t from the seed or sized so ε spans [0, 0.8·kmax]."""
         z = []
-        for i in self.free:
-            z += list(np.clip(points[i], self.seed[i] - self.regions[i], self.seed[i] + self.regions[i]))
+        for k, i in enumerate(self.free):
+            z += list(np.clip(points[i], self.lbx[3 * k:3 * k + 3], self.ubx[3 * k:3 * k + 3]))
         f = ca.Function("L", [self.z], [self.L])  # lengths do not depend on n_parallel
         L = np.array(f(np.array(z + [1.0, 0.0]))).ravel()
         if self.cfg.fix_lengths:
@@ -374,7 +394,7 @@ class ActuatorProblem:
         return self._solution(np.asarray(z, float), f, "given", True, 0.0, n_parallel, skip_capsules=True)
 
     def _capsule_rows(self) -> np.ndarray:
-        """Mask of the bone-capsule clearance rows of :attr:`g`."""
+        """Mask of the bone-capsule clearance rows of :attr:`g` (families "... clears <capsule>")."""
         return np.array([" clears " in f for f in self.family], dtype=bool)
 
     def _solution(self, z: np.ndarray, f: float, status: str, success: bool, seconds: float,

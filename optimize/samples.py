@@ -73,6 +73,8 @@ class ActuatorData:
         objective: list of (coordinate, sample indices, human torque (len), weight, label).
         norm: {label: peak} normalising the whole-vector labels by the human primary peak.
         crossed: The coordinates of the whole-vector term.
+        mirrored: The model has a left side (bodies ``*_l``): the robot builds the mirror image of the
+            route there, and points on bodies both sides share must leave room for it.
         constraint_idx: sample indices where the strain and distance limits are imposed.
         clearance_idx: sample indices where the bone clearance is imposed.
         capsules: list of (capsule, (S, 3) world a, (S, 3) world b).
@@ -99,6 +101,7 @@ class ActuatorData:
     primary_coordinate: str
     norm: dict = None                   # objective label -> normalising peak (default: the label's own)
     crossed: list = None                # coordinates of the whole-vector term
+    mirrored: bool = False              # a two-sided model: the robot's left side mirrors this route
 
 
 def _grid(model: Model, rom: RangeOfMotion, coords: list[str], n: int) -> np.ndarray:
@@ -235,7 +238,7 @@ def actuator_data(pam: Pam, human: Model, rom: RangeOfMotion, cfg: RunConfig, fi
     return ActuatorData(pam, q, bodies, st.body_R[:, bidx], st.body_p[:, bidx],
                         [bodies.index(pt.body) for pt in pam.points], moving_x, moving_v, omega, tau, obj,
                         constraint_idx, clearance_idx, capsules, fitting_length, cfg.pressure_Pa, cfg.force_model, prim,
-                        norm, crossed)
+                        norm, crossed, mirrored=any(b.name.endswith("_l") for b in human.osim.bodies))
 
 
 #: Random stream of the optimiser's training poses (the audit draws from ``AUDIT_STREAM``).

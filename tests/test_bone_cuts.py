@@ -50,7 +50,54 @@ def test_closest_point_and_normal_are_the_distance_gradient():
     np.testing.assert_allclose(P, c + d[:, None] * n, atol=1e-12)
 
 
-def test_mesh_rows_keep_a_toy_route_out_of_a_toy_mesh():
+def test_exit_point_leaves_overlapping_meshes():
+    """A point inside two crossing plates (a bone of overlapping meshes, like the pelvis halves and
+    sacrum): the move along the nearest surface's normal lands inside the other plate; ``exit_point``
+    finds the way out, as short as the analytic one (to the corner (5 + t, 5 + t) mm) within its ray
+    spacing."""
+    from pamkin.optimize.bone_cuts import exit_point
+
+    model = pamkin.load_osim(DATA / "two_body.osim")
+    plate_a = _box([-0.05, -0.005, -0.05], [0.05, 0.005, 0.05])     # |y| < 5 mm
+    plate_b = _box([-0.005, -0.05, -0.05], [0.005, 0.05, 0.05])     # |x| < 5 mm
+    bones = BoneSet.from_meshes(model, {"base": [plate_a, plate_b]})
+    x = np.array([0.004, 0.0045, 0.0])
+    d, c, n = bones.body_closest("base", x[None])
+    assert d[0] < 0
+    along_normal = c[0] + POINT_MIN * n[0]
+    assert bones.body_signed_distance("base", along_normal[None])[0] < 0           # still inside
+    out = exit_point(bones, "base", x, POINT_MIN)
+    inside = lambda p: abs(p[1]) < 0.005 or abs(p[0]) < 0.005                       # noqa: E731
+    assert out is not None and not inside(out)
+    assert min(abs(out[0]), abs(out[1])) - 0.005 >= POINT_MIN - 1e-9                # independent distance
+    shortest = np.hypot(0.005 + POINT_MIN - x[0], 0.005 + POINT_MIN - x[1])
+    assert shortest - 1e-9 <= np.linalg.norm(out - x) <= shortest + 0.001
+    assert exit_point(bones, "base", np.array([0.0, 0.0, 0.0]), 0.1) is None       # no way out in reach
+
+
+def test_pull_in_puts_points_on_the_band_and_off_the_midline():
+    """``pull_in`` with ``zmin``: a point 40 mm from a sphere and below its z bound ends within the
+    3-18 mm band of the sphere (independent distance: |x| - radius) and at z >= zmin; one already
+    within both is left alone; without ``zmin`` only the band applies."""
+    model = pamkin.load_osim(DATA / "two_body.osim")
+    ball = trimesh.creation.icosphere(subdivisions=4, radius=0.05)
+    bones = BoneSet.from_meshes(model, {"base": [(ball.vertices, ball.faces)]})
+    route = (PathPoint("o", "base", (0.09, 0.0, -0.02)), PathPoint("i", "arm", (0.05, -0.12, 0.0)))
+    pam = Pam(1, "toy", (), "angle", (), 10, 1, 0.25, 0.0, route)
+    q, _ = model.grid(["angle"], 3, rom=RangeOfMotion({"angle": (-0.2, 0.2)}))
+    cuts = BoneCuts(pam, model, bones, q)
+    loc = np.array([[0.09, 0.0, -0.02], [0.05, -0.12, 0.0]])
+    zmin = np.array([0.01, -np.inf])
+    out = cuts.pull_in(loc, reach=0.0, zmin=zmin)
+    radius_at = np.linalg.norm(out[0]) - 0.05            # the icosphere's faces lie within 0.1 mm of the sphere
+    assert POINT_MIN - 2e-4 <= radius_at <= POINT_MAX + 2e-4 and out[0][2] >= zmin[0]
+    np.testing.assert_array_equal(out[1], loc[1])        # no mesh on the arm: unchanged
+    assert np.array_equal(cuts.pull_in(out, reach=0.0, zmin=zmin), out)    # already on both: unchanged
+    band_only = cuts.pull_in(loc, reach=0.0)
+    assert band_only[0][2] < 0 and POINT_MIN - 2e-4 <= np.linalg.norm(band_only[0]) - 0.05 <= POINT_MAX + 2e-4
+
+
+def test_mesh_rows_keep_a_toy_route_out_of_a_toy_mesh(monkeypatch):
     """Two bodies, one pin joint; each attachment point stands 30 mm off its bone (a block), and the
     straight route passes through a bump of the base's bone. After the bone-mesh rounds,
     measured independently on a dense grid of the joint angle: the route clears the meshes (the
@@ -103,6 +150,16 @@ def test_mesh_rows_keep_a_toy_route_out_of_a_toy_mesh():
     assert measure.violation() == 0.0
     assert best.objective <= 1.5 * sol.objective + 1e-3     # the fit stays close to the unconstrained one
 
+    # the second start (optimize.run._seed_start): from the seed route moved onto the bands; its result
+    # replaces a worse one (here the unconstrained fit, in bone) and is itself clear of bone
+    from pamkin.optimize.run import _seed_start
+
+    lines: list[str] = []
+    kept, m_kept, _ = _seed_start(prob, sol, before, [], cuts, cfg, lines)
+    assert kept is not sol and kept.success and m_kept.violation() == 0.0, lines
+    assert lines[0] == "  bone rounds from the seed route:" and lines[-1].startswith("  kept the seed-route result")
+    assert cuts.measure(np.array(kept.points)).violation() == 0.0          # measured again, independently of m_kept
+
     # a warm start (the cleared route, taken as given): kept unless a round lowers its merit
     start = prob.evaluate(best.z, 1)
     again, m_again, _ = bone_stage(prob, start, cuts, rounds=8, keep_start=True)
@@ -118,12 +175,22 @@ def test_mesh_rows_keep_a_toy_route_out_of_a_toy_mesh():
     z[3:6] = c[0] - 0.001 * n[0]
     inside = prob.evaluate(z, 1)
     assert bones.body_signed_distance("arm", np.array([inside.points[1]]))[0] == pytest.approx(-0.001, abs=1e-9)
-    out, m_out, names = push_out(prob, inside, cuts)
-    assert names == ["i"] and out.success
+    out, m_out, names, outcome = push_out(prob, inside, cuts)
+    assert names == ["i"] and out.success and outcome == f"moved out to {1e3 * POINT_MIN:g} mm"
     assert bones.body_signed_distance("arm", np.array([out.points[1]]))[0] == pytest.approx(POINT_MIN, abs=1e-9)
     assert m_out.violation() <= cuts.measure(np.array(inside.points)).violation()
-    same, _, none = push_out(prob, best, cuts)              # nothing inside: unchanged
+    same, _, none, _ = push_out(prob, best, cuts)           # nothing inside: unchanged
     assert same is best and none == []
+    # a move the problem's constraints refuse (0.3 m out: far past the strain limits) falls back to the
+    # next distance; with none left the point stays and the outcome says why
+    import pamkin.optimize.bone_cuts as bc
+    monkeypatch.setattr(bc, "PUSH_TARGETS", (0.3, POINT_MIN))
+    out2, _, names2, outcome2 = push_out(prob, inside, cuts)
+    assert names2 == ["i"] and outcome2 == f"moved out to {1e3 * POINT_MIN:g} mm"
+    assert bones.body_signed_distance("arm", np.array([out2.points[1]]))[0] == pytest.approx(POINT_MIN, abs=1e-9)
+    monkeypatch.setattr(bc, "PUSH_TARGETS", (0.3,))
+    kept, _, names3, outcome3 = push_out(prob, inside, cuts)
+    assert kept is inside and names3 == ["i"] and outcome3.startswith("not moved out (even to 300 mm: ")
 
 
 def test_bone_mesh_config_keys(tmp_path):

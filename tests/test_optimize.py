@@ -585,3 +585,66 @@ def test_limit_check_finds_a_held_out_excess_and_tightening_removes_it():
     lim2 = min(festo.kmax(again.resting_length_m, 10) - STRAIN_MARGIN, festo.max_contraction(10) - STRAIN_MARGIN)
     assert eps2.max() <= lim2 + 1e-3
     assert not lc.limit_excess(again, model, q, cfg, 0.0125).get(lc.CONTRACTION_FESTO)
+
+
+def _segment_distance(a0, a1, b0, b1, n: int = 201) -> float:
+    """Smallest distance between two segments, sampled (independent of the optimiser's geometry)."""
+    t = np.linspace(0.0, 1.0, n)[:, None]
+    A, B = a0 + t * (a1 - a0), b0 + t * (b1 - b0)
+    return float(np.min(np.linalg.norm(A[:, None] - B[None], axis=2)))
+
+
+def test_route_on_the_pelvis_and_torso_clears_its_left_copy():
+    """Internal oblique (pelvis -> torso, 40 mm): its seed route ends 15 mm from the midline and its
+    unconstrained fit crosses it (left-right intersections in the audit's walking trial). With the
+    midline rows the solved route's points lie at z >= Festo's outer radius + 1 mm, and the route and its
+    mirror image are at least an outer diameter apart (sampled distance in the world, lumbar bent and
+    rotated to both range ends)."""
+    from pamkin.design import mirror_name
+    from pamkin.festo import outer_diameter
+    from pamkin.optimize.problem import MIDLINE_MARGIN
+
+    human = pamkin.gait2392()
+    from pamkin.design import SPLIT_GLUTEAL_DESIGN
+
+    design = load_design(SPLIT_GLUTEAL_DESIGN)
+    pam = design.pam(2)
+    rom = load_rom("robot_thesis", "r")
+    cfg = RunConfig(**FAST_FIT)
+    data = actuator_data(pam, human, rom, cfg, design.fitting_length_m)
+    assert data.mirrored
+    seed = [np.array(p.location) for p in pam.points]
+    regions = [np.array(cfg.region(2, p.name)) for p in pam.points]
+    prob = ActuatorProblem(data, cfg, 40, seed, regions)
+    rows = np.array(["room for its left copy" in f for f in prob.family])
+    assert rows.sum() == 2                                 # p1 on the pelvis, p2 on the torso
+    assert not prob._capsule_rows()[rows].any()            # kept in the bone-mesh rounds (capsule rows are not)
+    sol = prob.solve(prob.initial_guess(seed, None, None), 1)
+    assert sol.success, sol.status
+    r = outer_diameter(40) / 2
+    assert min(p[2] for p in sol.points) >= r + MIDLINE_MARGIN - 1e-6
+    # the bone-mesh rounds' solver (solve_with_rows) keeps these rows: from a start across the midline
+    z0 = sol.z.copy()
+    z0[5] = -0.01
+    lbx = prob.lbx.copy()
+    lbx[5] = -0.05
+    again, _ = prob.solve_with_rows(z0, 1, np.zeros((0, len(z0))), np.zeros(0), lbx, prob.ubx)
+    assert again.success and again.points[1][2] >= r + MIDLINE_MARGIN - 1e-6
+    # independent: world positions of the route and of its mirror image (z -> -z on the same bodies)
+    names = human.coordinates
+    lo, hi = rom.bounds("lumbar_bending")
+    q = np.zeros((4, len(names)))
+    for k, (b, rot) in enumerate(((lo, 0.0), (hi, 0.0), (0.0, rom.bounds("lumbar_rotation")[0]), (0.0, rom.bounds("lumbar_rotation")[1]))):
+        q[k, names.index("lumbar_bending")], q[k, names.index("lumbar_rotation")] = b, rot
+    ks = human.kinematics.forward(q, warn_range=False)
+    bodies = human.kinematics.bodies
+
+    def world(k, pt, loc):
+        j = bodies.index(pt.body)
+        return ks.body_p[k, j] + ks.body_R[k, j] @ loc
+
+    for k in range(len(q)):
+        right = [world(k, pt, np.asarray(x)) for pt, x in zip(pam.points, sol.points)]
+        left = [world(k, pt, np.asarray(x) * [1, 1, -1]) for pt, x in zip(pam.points, sol.points)]
+        assert all(mirror_name(pt.body) == pt.body for pt in pam.points)
+        assert _segment_distance(right[0], right[1], left[0], left[1]) >= 2 * r
