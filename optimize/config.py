@@ -6,7 +6,7 @@ force, a mass penalty, the real bone meshes, a unit budget); the default run use
 them (``one_segment`` and ``pam_clearance`` stay off, README "Optimiser v2"). :data:`FAST_FIT` holds the
 earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
 
-    design = "split_gluteal"     # seed design file, run folder or keyword ("thesis", "split_gluteal");
+    design = "v2_seed"           # seed design file, run folder or keyword ("thesis", "split_gluteal", "v2_seed");
                                  # "" = the robot's design robot/data/pam_biped.yaml
     actuators = []               # actuator ids; [] = all
     warm_start = ""              # run folder whose design.yaml seeds the routes and sizes (its diameter and
@@ -107,7 +107,7 @@ FAST_FIT: dict = {"design": "", "multistart": 2, "max_solve_seconds": 0.0, "n_ra
 class RunConfig:
     """An optimisation run (see the module docstring for the TOML form and defaults)."""
 
-    design: str = "split_gluteal"
+    design: str = "v2_seed"
     actuators: list[int] = field(default_factory=list)
     warm_start: str = ""
     pressure_Pa: float = 620e3

@@ -52,9 +52,12 @@ from .urdf_build import ROBOT_DIR, atomic_write
 #: The thesis robot's 27 PAMs as designed by hand (sized by the thesis algorithm): the baseline.
 THESIS_DESIGN = ROBOT_DIR / "data" / "thesis_design.yaml"
 #: The thesis design with its 9-muscle gluteal group split into gluteus maximus (24) and gluteus
-#: medius/minimus anterior (28) and posterior (29): the seed of the default optimiser run
-#: (tools/make_split_gluteal.py).
+#: medius/minimus anterior (28) and posterior (29) (tools/make_split_gluteal.py).
 SPLIT_GLUTEAL_DESIGN = ROBOT_DIR / "data" / "split_gluteal_design.yaml"
+#: The split-gluteal design with sartorius (6), gracilis (9) and soleus (12) re-seeded on Gait2392's
+#: paths (thesis defects beyond the optimiser's boxes): the seed of the default optimiser run
+#: (tools/make_split_gluteal.py).
+V2_SEED_DESIGN = ROBOT_DIR / "data" / "v2_seed_design.yaml"
 #: The robot's current design (starts as the thesis design; ``pamkin optimize --apply`` replaces it).
 ROBOT_DESIGN = ROBOT_DIR / "data" / "pam_biped.yaml"
 DIAMETERS_MM = (10, 20, 40)
@@ -224,8 +227,9 @@ def resolve_design_path(design: str | os.PathLike | None = None) -> Path:
 
     Args:
         design: ``None`` (the robot's current design ``robot/data/pam_biped.yaml``), the keywords
-            ``"thesis"`` (``robot/data/thesis_design.yaml``) and ``"split_gluteal"``
-            (``robot/data/split_gluteal_design.yaml``), a design file, or a run folder of
+            ``"thesis"`` (``robot/data/thesis_design.yaml``), ``"split_gluteal"``
+            (``robot/data/split_gluteal_design.yaml``) and ``"v2_seed"``
+            (``robot/data/v2_seed_design.yaml``), a design file, or a run folder of
             ``pamkin optimize`` (its ``design.yaml``).
 
     Raises:
@@ -237,6 +241,8 @@ def resolve_design_path(design: str | os.PathLike | None = None) -> Path:
         return THESIS_DESIGN
     if str(design) == "split_gluteal":
         return SPLIT_GLUTEAL_DESIGN
+    if str(design) == "v2_seed":
+        return V2_SEED_DESIGN
     path = Path(design)
     if path.is_dir():
         if not (path / "design.yaml").is_file():

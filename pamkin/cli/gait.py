@@ -22,7 +22,7 @@ def add_parsers(sub) -> None:
                     "saturated PAMs, dead zones and supply air per stride. The moments are those of OpenSim's "
                     "scaled subject01 (about 72 kg), used as given.")
     s.add_argument("design", nargs="?", default=None,
-                   help="design file, a `pamkin optimize` run folder, 'thesis' or 'split_gluteal' (default: the robot's design "
+                   help="design file, a `pamkin optimize` run folder, 'thesis', 'split_gluteal' or 'v2_seed' (default: the robot's design "
                         "robot/data/pam_biped.yaml)")
     s.add_argument("--ik", default=str(DEFAULT_IK), help="IK angles .mot (default: the shared subject01 trial)")
     s.add_argument("--id", default=str(DEFAULT_ID), help="ID moments .sto (default: the shared subject01 trial)")

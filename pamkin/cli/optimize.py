@@ -30,10 +30,13 @@ def add_parsers(sub) -> None:
                     "Festo's rated force and 25 percent contraction (also at the range-of-motion corners), "
                     "with a 1 mm attachment error moving the primary torque by at most 9 percent of the human "
                     "peak. Defaults (optimize/config.py): the "
-                    "split-gluteal seed design (29 actuators), a 60-unit budget over diameters and parallel "
-                    "counts, then the real bone meshes (points 3-18 mm outside their bone, segments clear "
-                    "of every bone at random, range-boundary, sweep and gait poses) and the strain and force "
-                    "limits re-checked on 2000 more poses per actuator; about 8 minutes on 2 cores. "
+                    "v2 seed design (29 actuators: the thesis layout, its gluteal group split in three, "
+                    "sartorius, gracilis and soleus on Gait2392's paths), a 60-unit budget over diameters and "
+                    "parallel counts, then the real bone meshes (points 3-18 mm outside their bone, pelvis and "
+                    "torso points clear of their left copy, segments clear of every bone at random, "
+                    "range-boundary, sweep and gait poses; rounds from the fitted and from the seed route) "
+                    "and the strain and force limits re-checked on 2000 more poses per actuator; about 9 "
+                    "minutes on 2 cores. "
                     "examples/optimize_fast.toml is the earlier 2.5-minute fit. Writes a run folder "
                     "(design.yaml, summary.json, log.txt, before_after.png) and audits the result next to "
                     "the thesis design (pamkin audit --quick); --apply also writes the design into "
@@ -54,8 +57,8 @@ def add_parsers(sub) -> None:
                    help="run folder whose design.yaml seeds the routes and sizes; its diameters and parallel counts are "
                         "tried first, the full loop only where they fail (overrides the config; default: none)")
     s.add_argument("--design", metavar="DESIGN",
-                   help="seed design: a design file, a run folder, 'thesis' or 'split_gluteal' (overrides the config; default: "
-                        "the config's, 'split_gluteal')")
+                   help="seed design: a design file, a run folder, 'thesis', 'split_gluteal' or 'v2_seed' (overrides the config; default: "
+                        "the config's, 'v2_seed')")
     s.add_argument("--quiet", action="store_true", help="no progress lines on stderr (default: progress shown)")
     s.add_argument("--no-audit", action="store_true",
                    help="skip the final `pamkin audit --quick` of the result and of the thesis design "
