@@ -191,6 +191,27 @@ def test_mesh_rows_keep_a_toy_route_out_of_a_toy_mesh(monkeypatch):
     monkeypatch.setattr(bc, "PUSH_TARGETS", (0.3,))
     kept, _, names3, outcome3 = push_out(prob, inside, cuts)
     assert kept is inside and names3 == ["i"] and outcome3.startswith("not moved out (even to 300 mm: ")
+    monkeypatch.undo()
+    # the third attempt: where the moved point alone and the re-solved lengths both fail (forced here), the
+    # other points are re-solved within PUSH_REACH with the moved point held
+    import dataclasses
+
+    real = prob.solve_with_rows
+    calls = []
+
+    def lengths_only_fails(z0, n, W, *args, **kw):
+        s, slack = real(z0, n, W, *args, **kw)
+        calls.append(len(W))
+        return (dataclasses.replace(s, success=False) if len(calls) == 1 else s), slack
+
+    real_evaluate = prob.evaluate
+    monkeypatch.setattr(prob, "evaluate", lambda z, n=1: dataclasses.replace(real_evaluate(z, n), success=False))
+    monkeypatch.setattr(prob, "solve_with_rows", lengths_only_fails)
+    out4, m4, names4, outcome4 = push_out(prob, inside, cuts)
+    assert len(calls) == 2 and names4 == ["i"] and outcome4 == f"moved out to {1e3 * POINT_MIN:g} mm", (calls, outcome4)
+    assert out4.success and m4.violation() <= cuts.measure(np.array(inside.points)).violation()
+    assert bones.body_signed_distance("arm", np.array([out4.points[1]]))[0] == pytest.approx(POINT_MIN, abs=1e-9)
+    assert np.abs(np.array(out4.points[0]) - np.array(inside.points[0])).max() <= bc.PUSH_REACH + 1e-7   # IPOPT bound relaxation
 
 
 def test_bone_mesh_config_keys(tmp_path):
