@@ -54,7 +54,7 @@ THESIS_DESIGN = ROBOT_DIR / "data" / "thesis_design.yaml"
 #: The thesis design with its 9-muscle gluteal group split into gluteus maximus (24) and gluteus
 #: medius/minimus anterior (28) and posterior (29) (tools/make_split_gluteal.py).
 SPLIT_GLUTEAL_DESIGN = ROBOT_DIR / "data" / "split_gluteal_design.yaml"
-#: The split-gluteal design with sartorius (6), gracilis (9) and soleus (12) re-seeded on Gait2392's
+#: The split-gluteal design with sartorius (6), rectus femoris (8), gracilis (9) and soleus (12) re-seeded on Gait2392's
 #: paths (thesis defects beyond the optimiser's boxes): the seed of the default optimiser run
 #: (tools/make_split_gluteal.py).
 V2_SEED_DESIGN = ROBOT_DIR / "data" / "v2_seed_design.yaml"

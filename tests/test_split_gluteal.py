@@ -64,11 +64,12 @@ def test_splitting_the_gluteal_group_lets_the_thesis_robot_walk_more_of_the_tria
 
 
 @pytest.mark.needs_shared
-def test_v2_seed_reseeds_sartorius_gracilis_and_soleus_on_gait2392():
-    """The default optimiser seed: the split-gluteal design with actuators 6, 9 and 12 on the fixed
-    path points of Gait2392's sar_r, grac_r and soleus_r (the thesis routes' origins and insertions lie
-    beyond the optimiser's 50 mm boxes), sized to the route's longest length; everything else as the
-    split design. Checked against the model file itself (independent of the tool)."""
+def test_v2_seed_reseeds_four_thesis_routes_on_gait2392():
+    """The default optimiser seed: the split-gluteal design with actuators 6, 8, 9 and 12 on the fixed
+    path points of Gait2392's sar_r, rect_fem_r, grac_r and soleus_r (the thesis routes' origins and
+    insertions lie beyond the optimiser's 50 mm boxes; rectus femoris keeps the thesis's patella point),
+    sized to the route's longest length; everything else as the split design. Checked against the model
+    file itself (independent of the tool)."""
     import xml.etree.ElementTree as ET
 
     import numpy as np
@@ -81,16 +82,19 @@ def test_v2_seed_reseeds_sartorius_gracilis_and_soleus_on_gait2392():
     from opensim_ref import GAIT2392
 
     osim = ET.parse(GAIT2392)
-    for pid, muscle in ((6, "sar_r"), (9, "grac_r"), (12, "soleus_r")):
+    for pid, muscle in ((6, "sar_r"), (8, "rect_fem_r"), (9, "grac_r"), (12, "soleus_r")):
         m = osim.getroot().find(f".//Thelen2003Muscle[@name='{muscle}']")
         fixed = [(pp.findtext("socket_parent_frame").split("/")[-1], np.array(pp.findtext("location").split(), float))
                  for pp in m.iter("PathPoint")]
         pam = seed.pam(pid)
-        assert len(pam.points) == len(fixed) >= 2
+        if pid == 8:                             # + the thesis's patella point
+            assert pam.points[-1] == split.pam(8).points[-1] and len(fixed) == 1
+        else:
+            assert len(pam.points) == len(fixed) >= 2
         for pt, (body, loc) in zip(pam.points, fixed):
             assert pt.body == body and np.allclose(pt.location, loc, atol=0)
         assert pam.tendon_length_m == 0.0 and 0.1 < pam.resting_length_m < 0.6
         assert pam.human_muscles == split.pam(pid).human_muscles
     for p in split.pams:
-        if p.id not in (6, 9, 12):
+        if p.id not in (6, 8, 9, 12):
             assert seed.pam(p.id) == p
