@@ -413,9 +413,10 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start:
     best, best_m = sol, m0
     best_key = stage_key(m0, sol)
     info = [{"round": 0, "violation_mm": round(1e3 * m0.violation(), 3), "objective": float(sol.objective)}]
-    z = sol.z.copy()        # rows are elastic, the bracket balls hard: the first round starts from the fitted
-    z[:3 * npt] = cuts.pull_in(np.array(sol.points), reach=0.0,    # route, points beyond the bracket pulled in
-                               zmin=getattr(prob, "zmin", None)).ravel()
+    # the first round starts from the given route, its points outside the bracket band (or short of the
+    # room for their left copy) moved onto it
+    z = sol.z.copy()
+    z[:3 * npt] = cuts.pull_in(np.array(sol.points), reach=0.0, zmin=prob.zmin).ravel()
     merit = np.inf                   # accept the first round
     merit_violation = np.inf
     if keep_start and sol.success:   # ... unless the start is a candidate itself

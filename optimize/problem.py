@@ -158,6 +158,7 @@ class ActuatorProblem:
         self.J = J + cfg.regularization * reg
         # constraints
         g, lbg, ubg, fam = [], [], [], []
+        capsule_rows: list[int] = []     # indices of the bone-capsule rows (the bone-mesh rounds replace them)
         ci = [int(s) for s in data.constraint_idx]
         eps_c = self.strain[0, ci]
         for family, expr, lo, hi in limit_rows(cfg, diameter, eps_c, self.unit_force[0, ci], self.kmax):
@@ -229,6 +230,7 @@ class ActuatorProblem:
                     lbg += [need ** 2] * len(cc)
                     ubg += [np.inf] * len(cc)
                     fam += [f"segment {a + 1}-{a + 2} clears {cap.name}"] * len(cc)
+                    capsule_rows += range(len(fam) - len(cc), len(fam))
         # the left side is the mirror image (z -> -z): a point on a body both sides share (pelvis, torso)
         # keeps its PAM clear of its own left copy (z >= Festo's outer PAM radius + margin, as the audit
         # measures it; the segment between two such points then too, and over lumbar motion both copies
@@ -245,12 +247,14 @@ class ActuatorProblem:
                 fam += [f"{pt.name} leaves room for its left copy (z >= PAM outer radius + {1e3 * MIDLINE_MARGIN:g} mm)"]
         self.g = ca.vertcat(*g)
         self.lbg, self.ubg, self.family = np.array(lbg), np.array(ubg), fam
+        self._capsule_mask = np.zeros(len(fam), dtype=bool)
+        self._capsule_mask[capsule_rows] = True
         # variable bounds
         lbx, ubx = [], []
         for i in self.free:
             r = np.asarray(regions[i], float)
             lo, hi = self.seed[i] - r, self.seed[i] + r
-            if data.mirrored and i not in self.moving and mirror_name(pts[i].body) == pts[i].body and r[2] > 0:
+            if np.isfinite(self.zmin[i]) and r[2] > 0:
                 # room on the right of the midline (row above) even for a seed on or across it
                 hi[2] = max(hi[2], self.midline + r[2])
             lbx += list(lo)
@@ -394,8 +398,8 @@ class ActuatorProblem:
         return self._solution(np.asarray(z, float), f, "given", True, 0.0, n_parallel, skip_capsules=True)
 
     def _capsule_rows(self) -> np.ndarray:
-        """Mask of the bone-capsule clearance rows of :attr:`g` (families "... clears <capsule>")."""
-        return np.array([" clears " in f for f in self.family], dtype=bool)
+        """Mask of the bone-capsule clearance rows of :attr:`g` (recorded where they are built)."""
+        return self._capsule_mask
 
     def _solution(self, z: np.ndarray, f: float, status: str, success: bool, seconds: float,
                   n_parallel: int = 1, skip_capsules: bool = False) -> Solution:
@@ -419,7 +423,9 @@ class ActuatorProblem:
             val = np.array(ca.Function("t", [self.z, self.npar], [tr])(z, n_parallel)).ravel()
             torques[label] = val
             nrmse[label] = float(np.sqrt(np.mean((val - th) ** 2)) / peak) if peak > 0 else float("nan")
-        violations = {k: v for k, v in violations.items() if not (skip_capsules and " clears " in k)}
+        if skip_capsules:
+            capsule_families = {f for f, cap in zip(self.family, self._capsule_mask) if cap}
+            violations = {k: v for k, v in violations.items() if k not in capsule_families}
         return Solution(self.d, n_parallel, pts, float(z[-2]), float(z[-1]), f, status,
                         success and max(viol, default=0) <= FEASIBILITY_TOL, violations, nrmse, torques, seconds, z.copy(),
                         skip_capsules)
