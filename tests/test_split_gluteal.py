@@ -96,5 +96,57 @@ def test_v2_seed_reseeds_four_thesis_routes_on_gait2392():
         assert pam.tendon_length_m == 0.0 and 0.1 < pam.resting_length_m < 0.6
         assert pam.human_muscles == split.pam(pid).human_muscles
     for p in split.pams:
-        if p.id not in (6, 8, 9, 12):
+        if p.id not in (6, 8, 9, 12, 28, 29):
             assert seed.pam(p.id) == p
+
+
+@pytest.mark.needs_shared
+def test_v2_seed_puts_the_gluteus_medius_pams_along_the_femur():
+    """Actuators 28/29 of the v2 seed: Gait2392's glut_med1/glut_med3 pelvis origin, a trochanter pulley
+    (the insertion 8 mm lateral), an anchor on the lateral femoral shaft. Checked against the model file,
+    the femur mesh and a hand calculation: both femur points lie 3-18 mm outside the bone; the femur
+    segment's length does not change with the hip (so the hip moment arms are the two-point route
+    pelvis-pulley's); the route's length change over the hip grid is within what a PAM spanning it can
+    take (stretch + 25 % contraction, about 28 %), where the two-point route's is about 60 %."""
+    import xml.etree.ElementTree as ET
+
+    import numpy as np
+
+    import pamkin
+    from pamkin.bones import BoneSet
+    from pamkin.paths import PathSet
+    from pamkin.rom import load_rom
+
+    from opensim_ref import GAIT2392
+
+    split, seed = load_design("split_gluteal"), load_design("v2_seed")
+    osim = ET.parse(GAIT2392)
+    human = pamkin.gait2392()
+    bones = BoneSet(human)
+    q, _ = human.grid(["hip_flexion_r", "hip_adduction_r", "hip_rotation_r"], 7)
+    st = human.kinematics.forward(q, warn_range=False)             # sizes the seed (Gait2392's ranges)
+    qr, _ = human.grid(["hip_flexion_r", "hip_adduction_r", "hip_rotation_r"], 7, rom=load_rom(seed.rom, "r"))
+    st_rom = human.kinematics.forward(qr, warn_range=False)        # the robot's range of motion
+    for pid, muscle in ((28, "glut_med1_r"), (29, "glut_med3_r")):
+        m = osim.getroot().find(f".//Thelen2003Muscle[@name='{muscle}']")
+        (b1, o), (b2, ins) = [(pp.findtext("socket_parent_frame").split("/")[-1],
+                               np.array(pp.findtext("location").split(), float)) for pp in m.iter("PathPoint")]
+        pam = seed.pam(pid)
+        p1, p2, p3 = pam.points
+        assert (p1.body, p2.body, p3.body) == (b1, b2, "femur_r") == ("pelvis", "femur_r", "femur_r")
+        assert np.allclose(p1.location, o, atol=0) and np.allclose(p2.location, ins + [0, 0, 0.008], atol=1e-9)
+        d = bones.body_signed_distance("femur_r", np.array([p2.location, p3.location]))
+        assert np.all((d > 0.003) & (d < 0.018)), d
+        three = PathSet(human.kinematics, ["r"], [list(pam.points)]).evaluate(st)
+        two = PathSet(human.kinematics, ["r"], [list(pam.points[:2])]).evaluate(st)
+        femur_seg = np.linalg.norm(np.subtract(p3.location, p2.location))
+        assert np.allclose(three.lengths[:, 0], two.lengths[:, 0] + femur_seg, atol=1e-12)
+        assert np.allclose(three.moment_arms, two.moment_arms, atol=1e-12)
+        L = three.lengths[:, 0]
+        assert pam.resting_length_m == pytest.approx(L.max() - 2 * seed.fitting_length_m, abs=1e-4)
+        # length change over the robot's hip range, per resting length: along the femur / two-point route
+        L = PathSet(human.kinematics, ["r"], [list(pam.points)]).evaluate(st_rom).lengths[:, 0]
+        assert (L.max() - L.min()) / pam.resting_length_m < 0.25
+        old = split.pam(pid)
+        L2 = PathSet(human.kinematics, ["r"], [list(old.points)]).evaluate(st_rom).lengths[:, 0]
+        assert (L2.max() - L2.min()) / old.resting_length_m > 0.5
