@@ -59,6 +59,11 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
     max_units = 60               # (v2) PAM units of the whole robot (both sides; 0: no limit): the diameter
                                  #      and parallel count of every actuator are chosen together, before the
                                  #      bone-mesh rounds, for the least summed score within this budget
+    walking_min = 0.9            # (v2, with max_units) after the bone rounds: while the pressure plan of the
+                                 #      walking trial, sampled between its frames, is feasible on less than
+                                 #      this fraction, actuators at the pressure limit get another diameter /
+                                 #      parallel count within the budget, solved again (0: off;
+                                 #      optimize.gait_check)
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
 """
@@ -84,7 +89,7 @@ _SECTIONS = {
                "move_moving_points": "move_moving_points", "rated_force": "rated_force",
                "one_segment": "one_segment", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
                "bone_seed_start": "bone_seed_start",
-               "max_units": "max_units",
+               "max_units": "max_units", "walking_min": "walking_min",
                "pam_clearance": "pam_clearance"},
 }
 
@@ -145,6 +150,7 @@ class RunConfig:
     bone_seed_start: bool = True
     pam_clearance: bool = False
     max_units: int = 60
+    walking_min: float = 0.9
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     source: str = ""
 
@@ -206,6 +212,9 @@ class RunConfig:
             raise bad("limits.pam_clearance", "needs limits.bone_mesh = true (the PAM-PAM pass reuses its rounds)")
         if self.max_units < 0:
             raise bad("limits.max_units", f"must be >= 0 (0: no limit), got {self.max_units}")
+        if not 0 <= self.walking_min <= 1:
+            raise bad("limits.walking_min", f"must lie in [0, 1] (a fraction of the samples; 0: off), got "
+                                            f"{self.walking_min}")
         if not 1 <= self.bone_rounds <= 20:
             raise bad("limits.bone_rounds", f"must lie in [1, 20], got {self.bone_rounds}")
         if self.max_iter < 1:

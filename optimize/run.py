@@ -135,7 +135,7 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         if feasible:
             d_best = min(feasible, key=lambda key: score(feasible[key]))[0]
             prev = feasible[(d_best, 1)]
-            for n in range(2, cfg.max_parallel + 1):
+            for n in range(2, min(cfg.max_parallel, _STATE.get("n_cap", cfg.max_parallel)) + 1):
                 s = attempt(d_best, n, prev.points, prev.rest_length, prev.tendon_length, "seed", relaxed)
                 if not (s.success and score(s) < 0.95 * score(prev)):
                     break
@@ -250,23 +250,41 @@ def _seed_start(prob, best, measure, info: list, cuts, cfg: RunConfig, lines: li
 def _finish_actuator(k: int) -> ActuatorResult:
     """Second phase of a run with a unit budget (in a worker): the chosen diameter and parallel count
     of actuator ``k`` (``_STATE["choice"]``) from its first-phase fit, then the bone-mesh rounds."""
+    return _finish_choice((k, _STATE["choice"][k], None))
+
+
+def _finish_choice(task: tuple) -> ActuatorResult:
+    """Actuator ``k`` with diameter and parallel count ``key`` (task ``(k, key, z)``), then the bone-mesh
+    rounds (in a worker). It starts from the first phase's fit of ``key``; where the first phase has no
+    feasible fit of ``key`` (it tries only some counts), from decision vector ``z`` (a solved route), re-fitted
+    with ``key`` first. Returns the first phase's result when ``key`` is None, a failed result when the
+    re-fit is infeasible."""
     from .problem import ActuatorProblem  # noqa: PLC0415
 
+    k, key, z_start = task
     t0 = time.perf_counter()
     cfg: RunConfig = _STATE["cfg"]
     data = _STATE["data"][k]
     first: ActuatorResult = _STATE["first"][k]
     pam: Pam = data.pam
-    key = _STATE["choice"][k]
     if key is None:                   # nothing feasible: the first phase's (failed) result stands
         return first
-    _, sol, relax = first.candidates[key]
     seed = [np.array(getattr(p, "location", (0.0, 0.0, 0.0)), float) for p in pam.points]
     regions = [np.array(cfg.region(pam.id, p.name), float) if is_free(p) or cfg.move_moving_points
                else np.zeros(3) for p in pam.points]
-    prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax)
+    if key in first.candidates:
+        _, sol, relax = first.candidates[key]
+        prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax)
+        start = "unit budget choice"
+    else:
+        relax = frozenset(first.relaxed)
+        prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax)
+        sol = prob.solve(np.clip(np.asarray(z_start, float), prob.lbx, prob.ubx), key[1])
+        start = "walking check (from the solved route)"
+        if not sol.success:
+            return _result(pam, data, prob, sol, first.attempts, t0 - first.seconds, {})
     best, bone = _bone_rounds(prob, sol, pam, cfg)
-    attempts = first.attempts + [{"diameter_mm": key[0], "n_parallel": key[1], "start": "unit budget choice",
+    attempts = first.attempts + [{"diameter_mm": key[0], "n_parallel": key[1], "start": start,
                                   "status": sol.status, "objective": sol.objective, "feasible": bool(sol.success),
                                   "seconds": 0.0, "relaxed": sorted(relax)}]
     return _result(pam, data, prob, best, attempts, t0 - first.seconds, bone)
@@ -516,12 +534,15 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
         _STATE["bones"] = BoneSet(human)
     _STATE["fit_only"] = bool(cfg.max_units)
     order = {i: k for k, i in enumerate(ids)}
+    others = sum(p.n_parallel for p in seed_design.pams if p.id not in order)
+    # with a unit budget no actuator can get more PAMs than the budget leaves after one for every other
+    # actuator: larger counts are not tried (exact: the choice could never take them)
+    _STATE["n_cap"] = cfg.max_units // 2 - others - (len(pams) - 1) if cfg.max_units else cfg.max_parallel
     results = sorted(_map(_solve_actuator, [(k, 0) for k in range(len(pams))], cfg, stream),
                      key=lambda r: order[r.id])
     if not cfg.max_units:
         return results
     # unit budget: choose every actuator's diameter and count together, then the bone-mesh rounds
-    others = sum(p.n_parallel for p in seed_design.pams if p.id not in order)
     free = sum(r.n_parallel for r in results)
     choice, total = choose_units(results, cfg.max_units // 2 - others)
     units = sum(key[1] if key else r.n_parallel for key, r in zip(choice, results))
@@ -531,7 +552,42 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
           f"chosen {2 * (units + others)} (summed score {total:.4g})" + (": " + "; ".join(changed) if changed else ""),
           file=stream, flush=True)
     _STATE.update(fit_only=False, first=dict(enumerate(results)), choice=dict(enumerate(choice)))
-    return sorted(_map(_finish_actuator, list(range(len(results))), cfg, stream), key=lambda r: order[r.id])
+    results = sorted(_map(_finish_actuator, list(range(len(results))), cfg, stream), key=lambda r: order[r.id])
+    if cfg.walking_min > 0:
+        results = _walking_pass(seed_design, results, cfg.max_units // 2 - others, cfg, stream)
+    return results
+
+
+def _walking_pass(seed_design: Design, results: list[ActuatorResult], budget: int, cfg: RunConfig,
+                  stream) -> list[ActuatorResult]:
+    """The optimised design checked on the walking trial, diameters / counts swapped where it falls short
+    (:mod:`optimize.gait_check`)."""
+    from pamkin.robot import robot_skeleton  # noqa: PLC0415
+
+    from .gait_check import midpoint_trial, walking_pass  # noqa: PLC0415
+
+    skeleton = robot_skeleton()
+    trial = midpoint_trial(skeleton)
+    if trial is None:
+        lines = ["walking check skipped: the walking trial (pamkin.gait.DEFAULT_IK / DEFAULT_ID) is not there"]
+    else:
+        design = seed_design
+        for r in results:
+            design = design.replace_pam(r.pam)
+        order = {r.id: k for k, r in enumerate(_STATE["first"].values())}
+
+        def resolve(tasks: list) -> list[ActuatorResult]:
+            """The actuators of ``tasks`` solved again with another diameter / count (in the workers)."""
+            done = {(r.id, r.pam.diameter_mm, r.pam.n_parallel): r
+                    for r in _map(_finish_choice, [(order[results[i].id], key, z) for i, key, z in tasks], cfg, stream)}
+            return [done[(results[i].id, *key)] for i, key, _ in tasks]
+
+        _, results, lines = walking_pass(design, results, _STATE["data"], cfg, budget, skeleton, trial,
+                                         _STATE["human"], _STATE["rom"], resolve)
+    for line in lines:
+        print(line, file=stream, flush=True)
+    _STATE["walking_log"] = lines
+    return results
 
 
 def _map(fn, tasks: list, cfg: RunConfig, stream) -> list[ActuatorResult]:
@@ -630,7 +686,9 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
     log = [f"pamkin optimize: seed design {seed.name!r} ({seed.path}), config {cfg.source or 'defaults'}",
            f"workers {cfg.workers}, multistart {cfg.multistart}, diameters {cfg.diameters_mm}, "
            f"max_parallel {cfg.max_parallel}, force model {cfg.force_model}, pressure {cfg.pressure_Pa:.0f} Pa"]
+    _STATE["walking_log"] = []
     results = solve_all(seed, cfg, stream)
+    log.extend(_STATE["walking_log"])
     if cfg.bone_mesh and cfg.pam_clearance:
         results = clearance_pass(seed, results, cfg, stream)
     solve_seconds = time.perf_counter() - t0

@@ -648,3 +648,21 @@ def test_route_on_the_pelvis_and_torso_clears_its_left_copy():
         left = [world(k, pt, np.asarray(x) * [1, 1, -1]) for pt, x in zip(pam.points, sol.points)]
         assert all(mirror_name(pt.body) == pt.body for pt in pam.points)
         assert _segment_distance(right[0], right[1], left[0], left[1]) >= 2 * r
+
+
+def test_unit_budget_caps_the_parallel_counts_tried():
+    """With a unit budget no actuator can get more PAMs than the budget leaves after one for every other
+    actuator: the fit phase does not try larger counts (with one unit to spare it does)."""
+    import io
+
+    design = load_design()
+    others = sum(p.n_parallel for p in design.pams if p.id != 26)
+    counts = {}
+    for spare in (0, 1):
+        cfg = RunConfig(**{**FAST_FIT, "multistart": 0, "max_units": 2 * (others + 1 + spare)}, actuators=[26],
+                        workers=1, diameters_mm=[20], max_parallel=3, walking_min=0.0)
+        (r,) = run_mod.solve_all(design, cfg, io.StringIO())
+        counts[spare] = {a["n_parallel"] for a in r.attempts}
+        assert r.success and r.n_parallel <= 1 + spare
+    assert counts[0] == {1}
+    assert 2 in counts[1] and 3 not in counts[1]
