@@ -129,7 +129,7 @@ def walking_pass(design: Design, results: list, data: list, cfg, budget: int, sk
                  model, rom, resolve=None) -> tuple[Design, list, list[str]]:
     """Swap diameters / parallel counts of the optimised ``design`` until the walking fraction between
     the trial's frames reaches ``cfg.walking_min`` (or no swap raises it), within ``budget`` PAM units
-    per side.
+    on one side of the whole design (every actuator of ``design`` counts, optimised or not).
 
     Each step ranks the swaps of the actuators at the pressure limit by the plan with the new size on
     the same route (:func:`_proxies`), and solves the best ``max(2, cfg.workers)`` of them in rank

@@ -554,7 +554,7 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
     _STATE.update(fit_only=False, first=dict(enumerate(results)), choice=dict(enumerate(choice)))
     results = sorted(_map(_finish_actuator, list(range(len(results))), cfg, stream), key=lambda r: order[r.id])
     if cfg.walking_min > 0:
-        results = _walking_pass(seed_design, results, cfg.max_units // 2 - others, cfg, stream)
+        results = _walking_pass(seed_design, results, cfg.max_units // 2, cfg, stream)   # units of a whole side
     return results
 
 
@@ -564,10 +564,11 @@ def _walking_pass(seed_design: Design, results: list[ActuatorResult], budget: in
     (:mod:`optimize.gait_check`)."""
     from pamkin.robot import robot_skeleton  # noqa: PLC0415
 
-    from .gait_check import midpoint_trial, walking_pass  # noqa: PLC0415
+    from .gait_check import midpoint_trial, plan, walking_pass  # noqa: PLC0415
 
     skeleton = robot_skeleton()
     trial = midpoint_trial(skeleton)
+    report: dict = {"target": cfg.walking_min}
     if trial is None:
         lines = ["walking check skipped: the walking trial (pamkin.gait.DEFAULT_IK / DEFAULT_ID) is not there"]
     else:
@@ -582,11 +583,15 @@ def _walking_pass(seed_design: Design, results: list[ActuatorResult], budget: in
                     for r in _map(_finish_choice, [(order[results[i].id], key, z) for i, key, z in tasks], cfg, stream)}
             return [done[(results[i].id, *key)] for i, key, _ in tasks]
 
-        _, results, lines = walking_pass(design, results, _STATE["data"], cfg, budget, skeleton, trial,
-                                         _STATE["human"], _STATE["rom"], resolve)
+        before = plan(design, skeleton, trial).feasible_frame_fraction
+        after_design, results, lines = walking_pass(design, results, _STATE["data"], cfg, budget, skeleton, trial,
+                                                    _STATE["human"], _STATE["rom"], resolve)
+        report.update(samples=len(trial.times), fraction_before=round(before, 4),
+                      fraction_after=round(plan(after_design, skeleton, trial).feasible_frame_fraction, 4))
     for line in lines:
         print(line, file=stream, flush=True)
     _STATE["walking_log"] = lines
+    _STATE["walking"] = dict(report, log=lines)
     return results
 
 
@@ -687,6 +692,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
            f"workers {cfg.workers}, multistart {cfg.multistart}, diameters {cfg.diameters_mm}, "
            f"max_parallel {cfg.max_parallel}, force model {cfg.force_model}, pressure {cfg.pressure_Pa:.0f} Pa"]
     _STATE["walking_log"] = []
+    _STATE["walking"] = None
     results = solve_all(seed, cfg, stream)
     log.extend(_STATE["walking_log"])
     if cfg.bone_mesh and cfg.pam_clearance:
@@ -719,6 +725,8 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
                                           if r.bone and not r.bone["clear"]]
         summary["all_clear_bone"] = not summary["bone_mesh_not_clear"]    # the meshes replace the capsules
         summary["bone_mesh_fit_cost"] = costly
+    if _STATE.get("walking"):
+        summary["walking_check"] = _STATE["walking"]      # optimize.gait_check: fractions between the trial's frames
     summary["solve_seconds"] = round(solve_seconds, 1)
     summary["total_seconds"] = round(time.perf_counter() - t0, 1)
     save_design(new, out_dir / "design.yaml", _run_header(out_dir, cfg))

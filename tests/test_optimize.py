@@ -666,3 +666,53 @@ def test_unit_budget_caps_the_parallel_counts_tried():
         assert r.success and r.n_parallel <= 1 + spare
     assert counts[0] == {1}
     assert 2 in counts[1] and 3 not in counts[1]
+
+
+@pytest.mark.skipif(not __import__("pamkin.gait").gait.DEFAULT_IK.is_file(), reason="walking trial (../shared/gait) not available")
+def test_run_walking_check_resizes_an_actuator_at_the_pressure_limit(tmp_path, monkeypatch):
+    """The thesis design with only its tensor fasciae latae optimised (10 or 20 mm, one unit): the unit
+    budget keeps the better-fitting 10 mm, and the walking check finds it at the pressure limit.
+    (a) Route fixed (region 0), strain limits only: the 20 mm PAM fits on the same route, the swap is
+    kept and the fraction rises. (b) The v2 limits (training poses, rated force, sensitivity): the fixed
+    route cannot carry it, so the actuator is solved again in full (the workers' function), and as that
+    does not raise the fraction nothing is kept. Summary and log say so, with fractions that an
+    independent plan of the saved design reproduces."""
+    from pamkin.optimize import gait_check
+    from pamkin.robot import robot_skeleton
+
+    thesis = load_design("thesis")
+    others = sum(p.n_parallel for p in thesis.pams if p.id != 7)
+    sk = robot_skeleton()
+    trial = gait_check.midpoint_trial(sk)
+    calls = []
+    finish = run_mod._finish_choice
+
+    def counted(task):
+        calls.append(task[1])
+        return finish(task)
+
+    monkeypatch.setattr(run_mod, "_finish_choice", counted)
+    outcome = {}
+    for case, extra in (("fixed route", {"region_m": 0.0, "bone_clearance": False}),
+                        ("v2 limits", {"n_random": 30, "rated_force": True, "sensitivity_pct": 9.0})):
+        calls.clear()
+        cfg = RunConfig(**{**FAST_FIT, "multistart": 0, "design": "thesis", "max_units": 2 * (others + 1), **extra},
+                        actuators=[7], workers=1, diameters_mm=[10, 20], max_parallel=1, walking_min=0.95)
+        s = run(cfg, tmp_path / case)
+        w = s["walking_check"]
+        assert w["target"] == 0.95 and w["samples"] == 66
+        assert w["log"][0].startswith(f"walking check (66 samples between the trial's frames): "
+                                      f"{100 * w['fraction_before']:.1f} % feasible")
+        assert w["log"][0] in (tmp_path / case / "log.txt").read_text()
+        saved = load_design(tmp_path / case / "design.yaml", bodies=sk.bodies, coordinates=sk.coordinates)
+        assert gait_check.plan(saved, sk, trial).feasible_frame_fraction == pytest.approx(w["fraction_after"], abs=1e-4)
+        outcome[case] = (w, saved.pam(7), list(calls))
+    w, tfl, called = outcome["fixed route"]
+    assert (tfl.diameter_mm, tfl.n_parallel) == (20, 1) and w["fraction_after"] > w["fraction_before"] + 0.2
+    assert [p.location for p in tfl.points] == [p.location for p in thesis.pam(7).points]
+    assert "Tensor Fasciae Latae: 10x1 -> 20x1 on its route" in w["log"][1]
+    assert called == [(10, 1)]                       # the unit budget's choice only: no re-solve was needed
+    w, tfl, called = outcome["v2 limits"]
+    assert called == [(10, 1), (20, 1)]              # the choice, then the walking check's full re-solve
+    assert tfl.diameter_mm == 10 and w["fraction_after"] == w["fraction_before"]
+    assert "(solved: 7 20x1)" in w["log"][1] and "below the target 95 %" in w["log"][-1]
