@@ -8,16 +8,17 @@ early left stance (audit: 75 % of the frames feasible). A check on the fit phase
 rounds) did not see it (100 %): those routes lie 30-90 mm from bone.
 
 So after the rounds this module plans the pressures (:func:`pamkin.gait.evaluate_plan`) of the design on
-the walking trial **between** its frames (each sample the mid-point of two successive frames: angles
-and moments averaged; the audit's frames stay held out). While the feasible fraction is below the target
-it ranks, for each actuator whose PAMs (either side) are at the pressure limit in an infeasible sample,
-the other diameters and parallel counts within the unit budget by the plan with that size on the same
-route (cheap: about 0.3 s a plan), and solves the best few: first on the final route (points fixed:
-still clear of bone; resting and tendon length re-solved by the actuator's own problem, with its strain,
-rated-force and sensitivity limits, then :func:`optimize.limit_check.limit_excess` on its 2000 check
-poses), else, in a run, the whole actuator again with that size (its first-phase fit, the bone-mesh
-rounds, the limit check). It keeps the solved swap that raises the fraction most (ties: the smaller
-objective) and is no worse on bone (:func:`bone_ok`), and says what it did and what the fit cost.
+the walking trial **between** its frames (each sample the mid-point of two successive frames: angles and
+moments averaged; not the audit's frames, but the same trial: README, "Held out?"). While the feasible
+fraction is below the target it ranks, for each actuator whose PAMs (either side) are at the pressure
+limit in an infeasible sample, the other diameters and parallel counts within the unit budget by the plan
+with that size on the same route (cheap: about 0.3 s a plan), and solves the best few: first on the final
+route (points fixed: still clear of bone; resting and tendon length re-solved by the actuator's own
+problem, with its strain, rated-force and sensitivity limits, then
+:func:`optimize.limit_check.limit_excess` on its 2000 check poses), else, in a run, the whole actuator
+again with that size (its first-phase fit, the bone-mesh rounds, the limit check). It keeps the solved
+swap that raises the fraction most (ties: the smaller objective) and is no worse on bone
+(:func:`bone_ok`), and says what it did and what the fit cost.
 """
 
 from __future__ import annotations

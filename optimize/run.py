@@ -590,7 +590,6 @@ def _walking_pass(seed_design: Design, results: list[ActuatorResult], budget: in
                       fraction_after=round(plan(after_design, skeleton, trial).feasible_frame_fraction, 4))
     for line in lines:
         print(line, file=stream, flush=True)
-    _STATE["walking_log"] = lines
     _STATE["walking"] = dict(report, log=lines)
     return results
 
@@ -691,10 +690,9 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
     log = [f"pamkin optimize: seed design {seed.name!r} ({seed.path}), config {cfg.source or 'defaults'}",
            f"workers {cfg.workers}, multistart {cfg.multistart}, diameters {cfg.diameters_mm}, "
            f"max_parallel {cfg.max_parallel}, force model {cfg.force_model}, pressure {cfg.pressure_Pa:.0f} Pa"]
-    _STATE["walking_log"] = []
     _STATE["walking"] = None
     results = solve_all(seed, cfg, stream)
-    log.extend(_STATE["walking_log"])
+    log.extend((_STATE["walking"] or {}).get("log", []))
     if cfg.bone_mesh and cfg.pam_clearance:
         results = clearance_pass(seed, results, cfg, stream)
     solve_seconds = time.perf_counter() - t0

@@ -39,7 +39,7 @@ def add_parsers(sub) -> None:
                     "range-boundary, sweep and gait poses; rounds from the fitted and from the seed route) "
                     "and the strain and force limits re-checked on 2000 more poses per actuator, then a "
                     "walking check (pressure plans of the walking trial between its frames; actuators at the "
-                    "pressure limit re-sized within the budget until 90 percent are feasible); about 10 "
+                    "pressure limit re-sized within the budget while fewer than 90 percent are feasible); about 10 "
                     "minutes on 2 cores. "
                     "examples/optimize_fast.toml is the earlier 2.5-minute fit. Writes a run folder "
                     "(design.yaml, summary.json, log.txt, before_after.png) and audits the result next to "
