@@ -167,10 +167,11 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
     start taken as given (already through these rounds in its run) stays unless a round beats it."""
     if not (cfg.bone_mesh and best.success):
         return best, {}
-    from .bone_cuts import BoneCuts, bone_check_poses, bone_stage, push_out  # noqa: PLC0415
+    from .bone_cuts import (N_POINT_CHECK, BoneCuts, bone_check_poses, bone_stage,  # noqa: PLC0415
+                            point_contact_poses, push_out)
 
-    cuts = BoneCuts(pam, _STATE["human"], _STATE["bones"],
-                    *bone_check_poses(_STATE["human"], _STATE["rom"], pam, cfg.seed, crossed=prob.data.crossed))
+    q_bone, n_right = bone_check_poses(_STATE["human"], _STATE["rom"], pam, cfg.seed, crossed=prob.data.crossed)
+    cuts = BoneCuts(pam, _STATE["human"], _STATE["bones"], q_bone, n_right)
     lines: list[str] = []
     before = best
     # the strain and force limits on many more poses than the problem's samples (optimize.limit_check):
@@ -205,6 +206,16 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
             break
         note(excess, "limits tightened, bone rounds again")
         tighten(prob, excess)
+        best, measure, more = bone_stage(prob, best, cuts, cfg.bone_rounds, lines)
+        info += more
+    # attachment points against the other bones at many more poses: where one comes near, those poses
+    # join the bone-check poses (right-leg poses, first) and the rounds run again
+    extra = point_contact_poses(_STATE["human"], _STATE["bones"], _STATE["rom"],
+                                solution_pam(pam, prob.finalize(best)), cfg.seed)
+    if len(extra):
+        lines.append(f"  attachment point within 3 mm of another bone at {len(extra)} (the closest) of "
+                     f"{N_POINT_CHECK} more random poses: added to the bone-check poses, bone rounds again")
+        cuts = BoneCuts(pam, _STATE["human"], _STATE["bones"], np.vstack([extra, q_bone]), n_right + len(extra))
         best, measure, more = bone_stage(prob, best, cuts, cfg.bone_rounds, lines)
         info += more
     prob.lbg, prob.ubg = limits

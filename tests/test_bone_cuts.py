@@ -304,3 +304,30 @@ def test_bone_mesh_run_is_clear_on_held_out_poses(tmp_path, capsys):
         P = X[:, a:a + 1] + t[None, :, None] * (X[:, a + 1:a + 2] - X[:, a:a + 1])
         d, _ = bones.signed_distance(st, P, margin=0.0, bodies=right)
         assert d.min() >= -0.002, (a, d.min())
+
+
+def test_point_contact_poses_find_a_point_that_meets_another_bone():
+    """A pelvis attachment point low on the ischium (where a default run put the erector spinae's
+    origin): the femur reaches it at a few of 2000 random poses. Every pose returned brings it within
+    3 mm of a bone other than the pelvis, checked independently in the femur's frame; the iliac-crest
+    point of the same route meets no other bone."""
+    from pamkin.optimize.bone_cuts import POINT_CHECK_ADD, SEGMENT_CLEARANCE, point_contact_poses
+    from pamkin.rom import load_rom
+
+    human = pamkin.gait2392()
+    bones = BoneSet(human)
+    rom = load_rom("robot_thesis", "r")
+    low = PathPoint("p1", "pelvis", (-0.1296, -0.1010, 0.0846))
+    crest = PathPoint("p2", "pelvis", (-0.1425, 0.0291, 0.0436))
+    top = PathPoint("p3", "torso", (-0.0915, 0.2220, 0.0310))
+    pam = Pam(1, "toy", (), "lumbar_extension", (), 40, 1, 0.3, 0.0, (low, crest, top))
+    q = point_contact_poses(human, bones, rom, pam, seed=0)
+    assert 1 <= len(q) <= POINT_CHECK_ADD
+    st = human.kinematics.forward(q, warn_range=False)
+    b, f = human.bodies.index("pelvis"), human.bodies.index("femur_r")
+    x = st.body_p[:, b] + np.einsum("sij,j->si", st.body_R[:, b], np.array(low.location))
+    in_femur = np.einsum("sji,sj->si", st.body_R[:, f], x - st.body_p[:, f])
+    d = bones.body_signed_distance("femur_r", in_femur)
+    assert np.all(d < SEGMENT_CLEARANCE), d
+    assert len(point_contact_poses(human, bones, rom, Pam(1, "toy", (), "lumbar_extension", (), 40, 1, 0.3, 0.0,
+                                                          (crest, top)), seed=0)) == 0
