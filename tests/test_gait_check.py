@@ -61,7 +61,7 @@ def test_walking_pass_reports_the_fraction_and_swaps_nothing_it_cannot_improve(s
 
 
 def test_resize_keeps_the_route_and_meets_the_limits():
-    """Actuator 28 of the v2 seed on its route (points fixed) as 20 mm x 2: the points do not move, the
+    """Actuator 29 of the v2 seed on its route (points fixed) as 20 mm x 2: the points do not move, the
     resting and tendon lengths keep the PAM within Festo's contraction, stretch and rated force on a hip
     grid (checked here with the force model directly)."""
     import pamkin
@@ -73,7 +73,7 @@ def test_resize_keeps_the_route_and_meets_the_limits():
     human = pamkin.gait2392()
     rom = load_rom(seed.rom, "r")
     cfg = RunConfig()
-    pam = seed.pam(28)
+    pam = seed.pam(29)
     data = actuator_data(pam, human, rom, cfg, seed.fitting_length_m)
     z = np.concatenate([np.ravel([p.location for p in pam.points]), [pam.resting_length_m, 0.0]])
     out = gait_check.resize(data, cfg, z, 20, 2, human, rom)
