@@ -150,6 +150,19 @@ def test_mesh_rows_keep_a_toy_route_out_of_a_toy_mesh(monkeypatch):
     assert measure.violation() == 0.0
     assert best.objective <= 1.5 * sol.objective + 1e-3     # the fit stays close to the unconstrained one
 
+    # out of rounds while clear and still gaining: up to EXTRA_CLEAR_ROUNDS more, never a worse result.
+    # From the clear route, round 1 is accepted (the first always is) and clear: with rounds=1 a second
+    # round runs, unless the extension is switched off
+    import pamkin.optimize.bone_cuts as bc
+
+    ext, m_ext, info_ext = bone_stage(prob, best, cuts, rounds=1)
+    monkeypatch.setattr(bc, "EXTRA_CLEAR_ROUNDS", 0)
+    one, m_one, info_one = bone_stage(prob, best, cuts, rounds=1)
+    assert info_one[1]["accepted"] and info_one[1]["violation_mm"] == 0.0 and len(info_one) == 2, info_one
+    assert len(info_ext) >= 3, info_ext
+    assert bc.stage_key(m_ext, ext) <= bc.stage_key(m_one, one)
+    monkeypatch.undo()
+
     # the second start (optimize.run._seed_start): from the seed route moved onto the bands; its result
     # replaces a worse one (here the unconstrained fit, in bone) and is itself clear of bone
     from pamkin.optimize.run import _seed_start
