@@ -51,7 +51,8 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  # on its 1-D sweep by at most this % of the human peak (audit: 10); 0: off
     bone_mesh = true             # (v2) attachment points on their bone (3..18 mm out), segments clear of the
                                  #      real bone meshes at random, sweep and gait poses (optimize.bone_cuts)
-    bone_rounds = 10             # (v2) largest number of re-linearisation rounds of the bone-mesh rows
+    bone_rounds = 10             # (v2) largest number of re-linearisation rounds of the bone-mesh rows (a route
+                                 #      clear of bone still gaining >= 5 % a round gets up to 6 more)
     bone_seed_start = true       # (v2) the bone-mesh rounds also start from the seed route (points moved onto
                                  #      their bone's 3..18 mm band); the better of the two results is kept
     pam_clearance = false        # (v2, with bone_mesh) second pass: routes that hit another PAM's body are
