@@ -46,7 +46,12 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
     fix_lengths = false          # keep the seed resting and tendon lengths (move attachment points only)
     move_moving_points = true    # offset points that move with a coordinate (the patella) within the region
     rated_force = true           # (v2) force per PAM <= Festo's rated force and contraction <= Festo's maximum (0.25)
-    one_segment = false          # (v2) the PAM (+ fittings) fits on one straight segment of its route
+    one_segment = false          # (v2) the PAM (+ fittings) fits on one straight segment of its route, as a
+                                 #      constraint of every solve (slow, poor fits: mount below instead)
+    mount = true                 # (v2) after the bone rounds, the route fixed: the PAM is put on one straight
+    mount_cost = 0.1             #      segment (resting and tendon length re-solved, the tendon over the rest)
+                                 #      where the root of the fit objective grows by at most mount_cost;
+                                 #      elsewhere the run names the PAM and why (optimize.mount)
     sensitivity_pct = 9.0        # (v2) a 1 mm error of a fixed attachment point changes the primary torque
                                  # on its 1-D sweep by at most this % of the human peak (audit: 10); 0: off
     bone_mesh = true             # (v2) attachment points on their bone (3..18 mm out), segments clear of the
@@ -88,7 +93,7 @@ _SECTIONS = {
                "bone_clearance": "bone_clearance", "kmax_scale": "kmax_scale",
                "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths",
                "move_moving_points": "move_moving_points", "rated_force": "rated_force",
-               "one_segment": "one_segment", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
+               "one_segment": "one_segment", "mount": "mount", "mount_cost": "mount_cost", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
                "bone_seed_start": "bone_seed_start",
                "max_units": "max_units", "walking_min": "walking_min",
                "pam_clearance": "pam_clearance"},
@@ -106,7 +111,8 @@ def _is_number(v) -> bool:
 #: The earlier default (before the v2 ingredients were switched on): the 1-D/2-D fit of the robot's
 #: current design, capsule bone clearance, no unit budget. ``RunConfig(**FAST_FIT)``.
 FAST_FIT: dict = {"design": "", "multistart": 2, "max_solve_seconds": 0.0, "n_random": 0, "weight_mass": 0.0,
-                  "rated_force": False, "bone_mesh": False, "max_units": 0, "sensitivity_pct": 0.0}
+                  "rated_force": False, "bone_mesh": False, "max_units": 0, "sensitivity_pct": 0.0,
+                  "mount": False}
 
 
 @dataclass
@@ -145,6 +151,8 @@ class RunConfig:
     move_moving_points: bool = True
     rated_force: bool = True
     one_segment: bool = False
+    mount: bool = True
+    mount_cost: float = 0.1
     sensitivity_pct: float = 9.0
     bone_mesh: bool = True
     bone_rounds: int = 10
@@ -198,7 +206,8 @@ class RunConfig:
                 raise bad(_KEYS[name], f"must be >= 2 and <= 201 samples, got {getattr(self, name)}")
         for name in ("multistart", "seed", "multistart_threshold", "weight_primary", "weight_secondary",
                      "regularization", "region_m", "min_point_distance_m", "pretension_scale",
-                     "weight_whole_vector", "weight_mass", "n_random", "max_solve_seconds", "sensitivity_pct"):
+                     "weight_whole_vector", "weight_mass", "n_random", "max_solve_seconds", "sensitivity_pct",
+                     "mount_cost"):
             if getattr(self, name) < 0:
                 raise bad(_KEYS[name], f"must be >= 0, got {getattr(self, name)}")
         if self.weight_primary + self.weight_secondary <= 0:

@@ -53,6 +53,7 @@ class ActuatorResult:
     n_parallel: int = 1
     # (fit-only first phase of a run with a unit budget) {(diameter, n_parallel): (score, Solution, relaxed)}
     candidates: dict = field(default_factory=dict, repr=False)
+    mount: dict = field(default_factory=dict)            # one-segment stage (optimize.mount)
 
 
 # worker state (fork): set before the pool starts
@@ -151,7 +152,8 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         out.candidates = candidates
         return out
     best, bone = _bone_rounds(best_problem[0], best, pam, cfg)
-    return _result(pam, data, best_problem[0], best, attempts, t0, bone)
+    best, mount = _mount(best_problem[0], best, pam, cfg)
+    return _result(pam, data, best_problem[0], best, attempts, t0, bone, mount)
 
 
 #: The bone-mesh rounds start once more from the seed route unless the first result is clear of bone with
@@ -295,10 +297,21 @@ def _finish_choice(task: tuple) -> ActuatorResult:
         if not sol.success:
             return _result(pam, data, prob, sol, first.attempts, t0 - first.seconds, {})
     best, bone = _bone_rounds(prob, sol, pam, cfg)
+    best, mount = _mount(prob, best, pam, cfg)
     attempts = first.attempts + [{"diameter_mm": key[0], "n_parallel": key[1], "start": start,
                                   "status": sol.status, "objective": sol.objective, "feasible": bool(sol.success),
                                   "seconds": 0.0, "relaxed": sorted(relax)}]
-    return _result(pam, data, prob, best, attempts, t0 - first.seconds, bone)
+    return _result(pam, data, prob, best, attempts, t0 - first.seconds, bone, mount)
+
+
+def _mount(prob, best, pam: Pam, cfg: RunConfig):
+    """The one-segment stage of a solved actuator (when ``cfg.mount``; :mod:`optimize.mount`):
+    (solution, mount info)."""
+    if not (cfg.mount and best.success):
+        return best, {}
+    from .mount import mount_stage  # noqa: PLC0415
+
+    return mount_stage(prob, best, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam)
 
 
 def choose_units(results: list[ActuatorResult], budget: int) -> tuple[list, float]:
@@ -355,14 +368,14 @@ def solution_pam(pam: Pam, best) -> Pam:
                pam.notes)
 
 
-def _result(pam: Pam, data, prob, best, attempts: list, t0: float, bone: dict) -> ActuatorResult:
+def _result(pam: Pam, data, prob, best, attempts: list, t0: float, bone: dict, mount: dict | None = None) -> ActuatorResult:
     """The saved form of an actuator's best solution (tendon clipped at 0, moving points shifted)."""
     best = prob.finalize(best)
     new = solution_pam(pam, best)
     sample_q = {label: data.q[rows] for _, rows, _, _, label in data.objective}
     return ActuatorResult(pam.id, pam.name, new, best.status, best.success, attempts, best.nrmse_samples,
                           best.torque_samples, sample_q, best.violations, time.perf_counter() - t0,
-                          sorted(prob.relax), bone, best.z.copy(), best.n_parallel)
+                          sorted(prob.relax), bone, best.z.copy(), best.n_parallel, mount=mount or {})
 
 
 def _bone_info(cuts, before, measure, info, lines, names) -> dict:
@@ -449,6 +462,20 @@ def clearance_pass(seed: Design, results: list[ActuatorResult], cfg: RunConfig, 
 
 #: The run names actuators whose fit objective the bone-mesh rounds raise by more than this factor.
 FIT_COST_FACTOR = 3.0
+
+
+def mount_lines(results: list[ActuatorResult]) -> list[str]:
+    """The one-segment stage's outcome (:mod:`optimize.mount`): how many PAMs sit on one straight segment,
+    then one line per PAM that does not, naming why with its numbers."""
+    done = [r for r in results if r.mount]
+    if not done:
+        return []
+    on = [r for r in done if r.mount["mounted"]]
+    out = [f"one straight segment: {len(on)} of {len(done)} PAMs (resting and tendon length re-solved on the "
+           f"fixed route; mount_cost {_STATE['cfg'].mount_cost:g})"]
+    out += [f"one straight segment: actuator {r.id} {r.name} ({r.mount['reason']}): {r.mount['line']}"
+            for r in done if not r.mount["mounted"]]
+    return out
 
 
 def fit_cost_lines(results: list[ActuatorResult]) -> list[str]:
@@ -719,12 +746,16 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         if r.bone:
             log.extend(r.bone["log"])
             log.append(f"  bone-mesh clearance of actuator {r.id} {r.name}: " + bone_line(r.bone))
+        if r.mount:
+            log.append(f"  actuator {r.id} {r.name}: {r.mount['line']}")
     for r in results:
         if r.bone and not r.bone["clear"]:
             print(f"bone-mesh: actuator {r.id} {r.name}: {bone_line(r.bone)}", file=stream, flush=True)
     costly = fit_cost_lines(results)
     for line in costly:
         print(f"bone-mesh: {line}", file=stream, flush=True)
+    for line in mount_lines(results):
+        print(line, file=stream, flush=True)
     print("solving done; checking every actuator on dense grids (numpy pipeline) ...", file=stream, flush=True)
     summary = summarize(seed, new, results, cfg, progress=_check_progress(stream))
     bone = {str(r.id): {k: v for k, v in r.bone.items() if k != "log"} for r in results if r.bone}
@@ -734,6 +765,8 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
                                           if r.bone and not r.bone["clear"]]
         summary["all_clear_bone"] = not summary["bone_mesh_not_clear"]    # the meshes replace the capsules
         summary["bone_mesh_fit_cost"] = costly
+    if any(r.mount for r in results):
+        summary["one_segment"] = {str(r.id): r.mount for r in results if r.mount}
     if _STATE.get("walking"):
         summary["walking_check"] = _STATE["walking"]      # optimize.gait_check: fractions between the trial's frames
     summary["solve_seconds"] = round(solve_seconds, 1)

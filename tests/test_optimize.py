@@ -716,3 +716,87 @@ def test_run_walking_check_resizes_an_actuator_at_the_pressure_limit(tmp_path, m
     assert called == [(10, 1), (20, 1)]              # the choice, then the walking check's full re-solve
     assert tfl.diameter_mm == 10 and w["fraction_after"] == w["fraction_before"]
     assert "(solved: 7 20x1)" in w["log"][1] and "below the target 95 %" in w["log"][-1]
+
+
+def _toy_spanning_solution(route, rom, factor: float, cfg_kw: dict | None = None):
+    """A toy actuator (two_body.osim) fitted without the one-segment rows: (model, seed, cfg, prob, sol)."""
+    model = pamkin.load_osim(DATA / "two_body.osim")
+    seed = Pam(1, "toy", (), "angle", (), 10, 1, 0.3, 0.0, route)
+    seed_robot = PamRobot(Design("seed", (seed,)), model, sides=("r",))
+
+    def target(q):
+        return factor * seed_robot.evaluate(q).torques[:, 0, :]
+
+    cfg = RunConfig(**{**FAST_FIT, "rated_force": True, **(cfg_kw or {})}, regularization=0.0,
+                    bone_clearance=False, n_primary=21, min_point_distance_m=0.0, regions={"1": [0.0, 0.0, 0.0]})
+    data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
+    pts = [np.array(p.location) for p in seed.points]
+    prob = ActuatorProblem(data, cfg, 10, pts, [np.zeros(3)] * len(pts))
+    sol = prob.solve(prob.initial_guess(pts, None, None), 1)
+    assert sol.success, (sol.status, sol.violations)
+    return model, seed, cfg, prob, sol
+
+
+def _body_room(pam, model, q, segment: int, fitting: float = 0.0125) -> np.ndarray:
+    """Room left on a route segment by the PAM body at each pose (independent numpy: pamkin.robot)."""
+    robot = PamRobot(Design("m", (pam,)), model, sides=("r",))
+    X, _ = robot.paths.point_positions(model.kinematics.forward(q))
+    seg = np.linalg.norm(X[:, segment + 1] - X[:, segment], axis=1)
+    st = robot.evaluate(q)
+    return seg - (np.maximum(pam.resting_length_m, st.pam_lengths[:, 0]) + 2 * fitting)
+
+
+def test_mount_stage_puts_the_pam_on_one_segment_of_the_fixed_route():
+    """optimize.mount: a PAM fitted across a via point (it spans both segments) is put on the longest
+    segment by re-solving its resting and tendon lengths only: the route points stay, the PAM body fits
+    on that segment at 201 poses of the range (pamkin.robot, not the optimiser's rows), its strain stays
+    within its limits; with mount_cost 0 the same (costlier) result is refused and named."""
+    from pamkin import festo
+    from pamkin.optimize.mount import mount_stage, segment_names
+
+    rom = RangeOfMotion({"angle": (-0.4, 0.4)})
+    route = (PathPoint("o", "base", (0.03, 0.05, 0.0)), PathPoint("v", "base", (0.035, -0.12, 0.0)),
+             PathPoint("i", "arm", (0.02, -0.03, 0.0)))
+    model, seed, cfg, prob, sol = _toy_spanning_solution(route, rom, 0.6)
+    spanning = run_mod.solution_pam(seed, prob.finalize(sol))
+    q, _ = model.grid(["angle"], 201, rom=rom)
+    assert max(_body_room(spanning, model, q, j).min() for j in (0, 1)) < -0.05   # bends over v
+    mounted, info = mount_stage(prob, sol, seed, RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 10.0}),
+                                model, rom, run_mod.solution_pam)
+    assert info["mounted"], info
+    assert np.allclose(np.array(mounted.points), np.array(sol.points))              # the route is kept
+    pam = run_mod.solution_pam(seed, prob.finalize(mounted))
+    j = segment_names(seed).index(info["segment"])
+    assert _body_room(pam, model, q, j).min() >= -1e-6
+    eps = PamRobot(Design("m", (pam,)), model, sides=("r",)).evaluate(q).strain[:, 0]
+    assert eps.max() <= min(festo.kmax(pam.resting_length_m, 10), festo.max_contraction(10)) + 1e-6
+    assert eps.min() >= -festo.max_pretension(10) - 1e-6
+    assert pam.resting_length_m < spanning.resting_length_m and pam.tendon_length_m > 0.05
+    assert info["objective_after"] >= info["objective_before"] - 1e-9          # fewer choices: no better fit
+    kept, refused = mount_stage(prob, sol, seed, RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 0.0}),
+                                model, rom, run_mod.solution_pam)
+    if info["cost"] > 0:
+        assert not refused["mounted"] and refused["reason"] == "fit cost" and kept is sol
+        assert "mount_cost 0" in refused["line"]
+
+
+def test_mount_stage_names_a_pam_out_of_reach_with_its_numbers():
+    """A route whose excursion needs a longer PAM than its longest segment holds: the stage leaves the
+    solution unchanged and reports 'out of reach' with ΔL / (contraction + stretch limit) and the room."""
+    from pamkin import festo
+    from pamkin.optimize.mount import mount_stage
+
+    rom = RangeOfMotion({"angle": (-1.0, 1.0)})
+    route = (PathPoint("o", "base", (0.04, 0.15, 0.0)), PathPoint("v", "base", (0.05, -0.1, 0.0)),
+             PathPoint("i", "arm", (0.04, -0.05, 0.0)))
+    model, seed, cfg, prob, sol = _toy_spanning_solution(route, rom, 0.5)
+    kept, info = mount_stage(prob, sol, seed, cfg, model, rom, run_mod.solution_pam)
+    assert kept is sol and not info["mounted"] and info["reason"] == "out of reach"
+    ci = [int(s) for s in prob.data.constraint_idx]
+    L = PamRobot(Design("s", (run_mod.solution_pam(seed, prob.finalize(sol)),)), model,
+                 sides=("r",)).evaluate(prob.data.q[ci]).lengths[:, 0]
+    most = info["segment_holds_m"]
+    c = min(float(festo.kmax(most, 10)), festo.max_contraction(10))
+    assert info["least_rest_m"] == pytest.approx((L.max() - L.min()) / (c + festo.max_pretension(10)), rel=1e-6)
+    assert info["least_rest_m"] > most
+    assert f"{info['least_rest_m']:.3f} m" in info["line"]

@@ -1,0 +1,212 @@
+"""Each PAM on one straight segment of its solved route: resting and tendon length only.
+
+A PAM cannot bend over a via point or pulley: the PAM body (resting length, or its actual length when
+stretched, plus both fittings) must lie on one straight segment of the route at every pose, the
+artificial tendon taking the rest of the route over the pulleys (``pamkin audit``, "fits on one
+segment"). Solving the routes with that constraint from the start (``[limits] one_segment``) made the
+bone-mesh rounds much slower and the fits much worse (default run: 18 min, an actuator infeasible, README
+"Optimiser v2"). This stage runs after them instead, on the route they leave (every point fixed, so the
+bone clearance is untouched): for the :data:`N_SEGMENTS` longest segments it solves the actuator's own
+problem (objective, strain, rated-force and sensitivity rows at its samples) over the resting length l0
+and the tendon length t only, with the PAM on that segment at every constraint sample, then checks the
+strain and force limits and the segment on the held-out limit-check poses (:mod:`optimize.limit_check`;
+a miss tightens the rows once and solves again). The result replaces the spanning PAM when the root of
+the objective grows by at most ``cfg.mount_cost``; otherwise the run names the PAM and the reason:
+
+* **out of reach**: the PAM's excursion needs a resting length of at least ΔL / (c + s) (c = Festo's
+  25 % contraction or kmax, s = the stretch limit), more than the longest segment holds at its shortest
+  less the fittings — no choice of lengths can put it on one segment; the numbers are reported;
+* **infeasible**: within reach by that bound, but the solve finds no lengths meeting every limit;
+* **fit cost**: feasible, but the fit would get worse by more than ``mount_cost``.
+
+A shorter PAM works over a larger part of its contraction range, where the Festo force falls, so the
+force along the motion changes shape: that, not the geometry, is what mounting costs.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+
+import casadi as ca
+import numpy as np
+
+from pamkin import festo
+from pamkin.design import Pam
+from pamkin.errors import RangeWarning
+from pamkin.paths import PathSet
+
+from .limit_check import EXTRA, check_poses, limit_excess, tighten
+from .problem import SEGMENT_MARGIN, _norm_rows
+
+#: Segments tried per route (the longest at their shortest constraint sample first).
+N_SEGMENTS = 2
+
+
+def segment_names(pam: Pam) -> list[str]:
+    """``"p1->p2"``-style names of a route's segments."""
+    return [f"{a.name}->{b.name}" for a, b in zip(pam.points[:-1], pam.points[1:])]
+
+
+def held_out_margin(pam: Pam, model, q: np.ndarray, segment: int, fitting: float) -> float:
+    """Smallest room [m] left on route segment ``segment`` by the PAM body (max(resting, actual length)
+    + both fittings) over the poses ``q`` (negative: it does not fit) — the audit's measure."""
+    kin = model.kinematics
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RangeWarning)
+        ps = PathSet(kin, ["route"], [pam.points])
+        state = kin.forward(q, warn_range=False)
+        X, _ = ps.point_positions(state)
+        L = ps.evaluate(state, moment_arms=False).lengths[:, 0]
+    seg = np.linalg.norm(X[:, segment + 1] - X[:, segment], axis=1)
+    body = np.maximum(pam.resting_length_m, L - 2 * fitting - pam.tendon_length_m) + 2 * fitting
+    return float(np.min(seg - body))
+
+
+def reach_bound(L: np.ndarray, seg_min: float, diameter: int, cfg, fitting: float) -> tuple[float, float]:
+    """(least resting length the excursion of the path lengths ``L`` allows, most the segment holds) [m].
+
+    The least: ΔL / (c + s), with c the contraction limit (Festo's maximum, or kmax at the longest
+    resting length the segment allows if lower) and s the stretch limit; the most: the segment at its
+    shortest less both fittings and :data:`~optimize.problem.SEGMENT_MARGIN`."""
+    most = seg_min - 2 * fitting - SEGMENT_MARGIN
+    km = cfg.kmax_scale * float(festo.kmax(max(most, 1e-3), diameter, model=cfg.force_model))
+    c = min(km, festo.max_contraction(diameter)) if cfg.rated_force else km
+    s = cfg.pretension_scale * festo.max_pretension(diameter)
+    return float((np.max(L) - np.min(L)) / (c + s)), float(most)
+
+
+class _MountSolver:
+    """The actuator's problem over (l0, t) with the route fixed and the PAM on one segment."""
+
+    def __init__(self, prob, segment: int) -> None:
+        self.prob = prob
+        ci = [int(s) for s in prob.data.constraint_idx]
+        f = prob.data.fitting_length
+        seg = _norm_rows(prob.X[segment + 1] - prob.X[segment])[0, ci]
+        rows = [(seg - (prob.l0 + 2 * f + SEGMENT_MARGIN)).T, (seg - (prob.L[0, ci] - prob.t) - SEGMENT_MARGIN).T]
+        self.n_rows = 2 * len(ci)
+        nlp = {"x": prob.z, "p": prob.npar, "f": prob.J, "g": ca.vertcat(prob.g, *rows)}
+        self.solver = ca.nlpsol("mount", "ipopt", nlp, prob._ipopt_options())
+        self.g = ca.Function("g", [prob.z, prob.npar], [ca.vertcat(*rows)])
+
+    def solve(self, z0: np.ndarray, n_parallel: int, extra: float):
+        prob = self.prob
+        lbx, ubx = z0.copy(), z0.copy()          # every route point fixed (IPOPT makes them parameters)
+        lbx[-2:], ubx[-2:] = prob.lbx[-2:], prob.ubx[-2:]
+        lbg = np.concatenate([np.where(prob._capsule_rows(), -np.inf, prob.lbg), np.full(self.n_rows, extra)])
+        ubg = np.concatenate([prob.ubg, np.full(self.n_rows, np.inf)])
+        t0 = time.perf_counter()
+        res = self.solver(x0=z0, p=n_parallel, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        stats = self.solver.stats()
+        z = np.array(res["x"]).ravel()
+        sol = prob._solution(z, float(res["f"]), stats.get("return_status", "?"), bool(stats.get("success")),
+                             time.perf_counter() - t0, n_parallel, skip_capsules=True)
+        rows = np.array(self.g(z, n_parallel)).ravel()
+        if np.min(rows, initial=np.inf) < extra - 1e-6:
+            sol.success = False
+            sol.violations["PAM on one segment"] = float(extra - np.min(rows))
+        return sol
+
+
+def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[object, dict]:
+    """Put the PAM of a solved actuator on one straight segment of its route (module docstring).
+
+    Args:
+        prob: The actuator's :class:`~optimize.problem.ActuatorProblem` (its limits as solved).
+        best: Its solution after the bone-mesh rounds.
+        pam: The seed PAM (names, the route's point kinds).
+        cfg: The run configuration (``mount_cost``, limits).
+        model: The human model (kinematics of the held-out checks).
+        rom: The range of motion of the held-out checks.
+        solution_pam: ``(pam, solution) -> Pam`` (the run's saved form of a solution).
+
+    Returns:
+        ``(solution, info)``: the mounted solution, or ``best`` unchanged, and a dict with ``mounted``,
+        ``segment``, ``reason`` (why not), ``line`` (one sentence for the log and the report) and the
+        numbers behind it.
+    """
+    names = segment_names(pam)
+    f = prob.data.fitting_length
+    ci = [int(s) for s in prob.data.constraint_idx]
+    seg_fn = ca.Function("segs", [prob.z], [ca.vertcat(*[_norm_rows(prob.X[a + 1] - prob.X[a])[0, ci]
+                                                       for a in range(len(prob.X) - 1)])])
+    seg_min = np.array(seg_fn(best.z)).reshape(len(prob.X) - 1, len(ci)).min(axis=1)
+    L = np.array(ca.Function("L", [prob.z], [prob.L[0, ci]])(best.z)).ravel()
+    q_check = check_poses(model, rom, prob.data.crossed or [pam.primary_coordinate], cfg.seed, pam.id)
+    j_before = float(best.objective)
+    info: dict = {"mounted": False, "objective_before": j_before, "rest_before_m": float(best.rest_length),
+                  "tendon_before_m": float(max(best.tendon_length, 0.0))}
+    order = list(np.argsort(-seg_min))[:N_SEGMENTS]
+    need, most = reach_bound(L, float(seg_min[order[0]]), prob.d, cfg, f)
+    info.update(least_rest_m=need, segment_holds_m=most, excursion_m=float(np.ptp(L)))
+    if need > most:
+        info.update(reason="out of reach", segment=names[order[0]],
+                    line=f"cannot sit on one straight segment: its excursion {1e3 * np.ptp(L):.0f} mm needs a "
+                         f"resting length >= {need:.3f} m, the longest segment ({names[order[0]]}) holds "
+                         f"{most:.3f} m at its shortest")
+        return best, info
+    limits = (prob.lbg.copy(), prob.ubg.copy())
+    found = None
+    missed: dict[str, float] = {}        # the limits the failed tries exceeded (the held-out ones included)
+    try:
+        for j in order:
+            _, most_j = reach_bound(L, float(seg_min[j]), prob.d, cfg, f)
+            if need > most_j:
+                continue
+            z0 = best.z.copy()
+            z0[-2] = float(np.clip(min(best.rest_length, most_j), prob.lbx[-2], prob.ubx[-2]))
+            z0[-1] = float(np.clip(L.max() - 2 * f - z0[-2], prob.lbx[-1], prob.ubx[-1]))
+            ms = _MountSolver(prob, int(j))
+            extra = 0.0
+            sol = None
+            for _ in range(2):       # solve; where the held-out poses miss a limit, tighten once and again
+                sol = ms.solve(z0, best.n_parallel, extra)
+                if not sol.success:
+                    for k, v in sol.violations.items():
+                        if v > 1e-6:
+                            missed[k] = max(missed.get(k, 0.0), v)
+                    break
+                cand = solution_pam(pam, prob.finalize(sol))
+                excess = limit_excess(cand, model, q_check, cfg, f)
+                margin = held_out_margin(cand, model, q_check, int(j), f)
+                if not excess and margin >= 0:
+                    break
+                for k, v in excess.items():
+                    missed[f"{k} (held-out poses)"] = max(missed.get(f"{k} (held-out poses)", 0.0), v)
+                if margin < 0:
+                    missed["PAM on one segment (held-out poses) [m]"] = max(
+                        missed.get("PAM on one segment (held-out poses) [m]", 0.0), -margin)
+                if excess:
+                    tighten(prob, excess)
+                if margin < 0:
+                    extra += -margin + EXTRA * 0.1
+                sol.success = False
+            prob.lbg, prob.ubg = limits[0].copy(), limits[1].copy()
+            if sol is not None and sol.success and (found is None or sol.objective < found[0].objective):
+                found = (sol, int(j))
+    finally:
+        prob.lbg, prob.ubg = limits
+    if found is None:
+        worst = sorted(missed.items(), key=lambda kv: -kv[1])[:3]
+        info.update(reason="infeasible", segment=names[order[0]], missed=dict(worst),
+                    line=f"no resting/tendon length puts it on one straight segment ({', '.join(names[j] for j in order)}) "
+                         f"within its limits (its excursion needs >= {need:.3f} m, {names[order[0]]} holds {most:.3f} m; "
+                         f"missed: {'; '.join(f'{k} by {v:.3g}' for k, v in worst) or 'solver failure'})")
+        return best, info
+    sol, j = found
+    cost = float(np.sqrt(max(sol.objective, 0.0)) - np.sqrt(max(j_before, 0.0)))
+    info.update(segment=names[j], objective_after=float(sol.objective), rest_after_m=float(sol.rest_length),
+                tendon_after_m=float(max(sol.tendon_length, 0.0)), cost=cost)
+    if cost > cfg.mount_cost:
+        info.update(reason="fit cost",
+                    line=f"on one straight segment ({names[j]}, resting length {best.rest_length:.3f} -> "
+                         f"{sol.rest_length:.3f} m) its fit would get worse: objective {j_before:.4g} -> "
+                         f"{sol.objective:.4g} (root +{cost:.3f} > mount_cost {cfg.mount_cost:g}); left spanning the route")
+        return best, info
+    info.update(mounted=True, reason="",
+                line=f"on one straight segment {names[j]}: resting length {best.rest_length:.3f} -> "
+                     f"{sol.rest_length:.3f} m, tendon {max(best.tendon_length, 0.0):.3f} -> "
+                     f"{max(sol.tendon_length, 0.0):.3f} m, objective {j_before:.4g} -> {sol.objective:.4g}")
+    return sol, info
+
