@@ -3,7 +3,8 @@
 Example (every key optional; these are the defaults). The keys marked (v2) are the ingredients of an
 optimiser judged by ``pamkin audit`` (multi-joint training poses, the whole torque vector, Festo's rated
 force, a mass penalty, the real bone meshes, a unit budget); the default run uses the measured set of
-them (``one_segment`` and ``pam_clearance`` stay off, README "Optimiser v2"). :data:`FAST_FIT` holds the
+them (``pam_clearance`` stays off, ``one_segment`` is on only for ``one_segment_actuators``, and the
+``mount`` stage puts the other PAMs on one segment where their fit allows, README "Optimiser v2"). :data:`FAST_FIT` holds the
 earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
 
     design = "v2_seed"           # seed design file, run folder or keyword ("thesis", "split_gluteal", "v2_seed");
@@ -48,6 +49,8 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
     rated_force = true           # (v2) force per PAM <= Festo's rated force and contraction <= Festo's maximum (0.25)
     one_segment = false          # (v2) the PAM (+ fittings) fits on one straight segment of its route, as a
                                  #      constraint of every solve (slow, poor fits: mount below instead)
+    one_segment_actuators = [13, 14]  # (v2) actuators solved with the one-segment rows all the same (the
+                                 #      gastrocnemii: measured to keep their fit, README)
     mount = true                 # (v2) after the bone rounds, the route fixed: the PAM is put on one straight
     mount_cost = 0.1             #      segment (resting and tendon length re-solved, the tendon over the rest)
                                  #      where the root of the fit objective grows by at most mount_cost;
@@ -93,7 +96,7 @@ _SECTIONS = {
                "bone_clearance": "bone_clearance", "kmax_scale": "kmax_scale",
                "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths",
                "move_moving_points": "move_moving_points", "rated_force": "rated_force",
-               "one_segment": "one_segment", "mount": "mount", "mount_cost": "mount_cost", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
+               "one_segment": "one_segment", "one_segment_actuators": "one_segment_actuators", "mount": "mount", "mount_cost": "mount_cost", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
                "bone_seed_start": "bone_seed_start",
                "max_units": "max_units", "walking_min": "walking_min",
                "pam_clearance": "pam_clearance"},
@@ -112,7 +115,10 @@ def _is_number(v) -> bool:
 #: current design, capsule bone clearance, no unit budget. ``RunConfig(**FAST_FIT)``.
 FAST_FIT: dict = {"design": "", "multistart": 2, "max_solve_seconds": 0.0, "n_random": 0, "weight_mass": 0.0,
                   "rated_force": False, "bone_mesh": False, "max_units": 0, "sensitivity_pct": 0.0,
-                  "mount": False}
+                  "mount": False, "one_segment_actuators": []}
+
+#: Actuators of the v2 seed solved with the one-segment rows by default (``one_segment_actuators``).
+ONE_SEGMENT_ACTUATORS = (13, 14)
 
 
 @dataclass
@@ -151,6 +157,7 @@ class RunConfig:
     move_moving_points: bool = True
     rated_force: bool = True
     one_segment: bool = False
+    one_segment_actuators: list[int] = field(default_factory=lambda: list(ONE_SEGMENT_ACTUATORS))
     mount: bool = True
     mount_cost: float = 0.1
     sensitivity_pct: float = 9.0
@@ -191,6 +198,10 @@ class RunConfig:
             raise bad("diameters_mm", f"must be a non-empty subset of [10, 20, 40] [mm], got {self.diameters_mm}")
         if any(a < 1 for a in self.actuators) or len(set(self.actuators)) != len(self.actuators):
             raise bad("actuators", f"must be distinct actuator ids >= 1, got {self.actuators}")
+        if any(a < 1 for a in self.one_segment_actuators) \
+                or len(set(self.one_segment_actuators)) != len(self.one_segment_actuators):
+            raise bad("limits.one_segment_actuators", f"must be distinct actuator ids >= 1, got "
+                                                      f"{self.one_segment_actuators}")
         if not 1e5 <= self.pressure_Pa <= 8e5:
             raise bad("pressure_Pa", f"must lie in [100000, 800000] Pa (e.g. 620000 for 6.2 bar), got "
                                      f"{self.pressure_Pa:g}")
@@ -257,6 +268,10 @@ class RunConfig:
                 raise DataFileError(self.source or "<config>", f"limits.max_units: {self.max_units} PAM units "
                                     f"cannot hold one PAM per actuator on both sides: the {len(ids)} optimised "
                                     f"actuators need {2 * len(ids)} and the others keep {fixed}")
+        odd = [a for a in self.one_segment_actuators if a not in pams]
+        if odd and tuple(self.one_segment_actuators) != ONE_SEGMENT_ACTUATORS:   # the default list fits the v2 seed
+            raise DataFileError(self.source or "<config>", f"limits.one_segment_actuators: unknown actuator id(s) "
+                                                           f"{odd}; the design {design.name!r} has {sorted(pams)}")
         for key in self.regions:
             aid, _, point = str(key).partition(".")
             if int(aid) not in pams:
@@ -266,6 +281,10 @@ class RunConfig:
             if point and point not in names:
                 raise DataFileError(self.source or "<config>", f"regions.{key}: actuator {aid} has no point "
                                                                f"{point!r} (points: {names})")
+
+    def one_segment_for(self, actuator: int) -> bool:
+        """Whether actuator ``actuator`` is solved with the one-segment rows (``one_segment`` or listed)."""
+        return bool(self.one_segment or actuator in self.one_segment_actuators)
 
     def region(self, actuator: int, point: str) -> list[float]:
         """Half-widths (x, y, z) [m] of a route point's box."""

@@ -77,32 +77,38 @@ def reach_bound(L: np.ndarray, seg_min: float, diameter: int, cfg, fitting: floa
 
 
 class _MountSolver:
-    """The actuator's problem over (l0, t) with the route fixed and the PAM on one segment."""
+    """The actuator's problem over (l0, t) with the route fixed at ``z_route`` (the points' values put into
+    its expressions: a two-variable NLP, cheap to build) and the PAM on one segment."""
 
-    def __init__(self, prob, segment: int) -> None:
+    def __init__(self, prob, segment: int, z_route: np.ndarray, n_parallel: int) -> None:
         self.prob = prob
         ci = [int(s) for s in prob.data.constraint_idx]
         f = prob.data.fitting_length
         seg = _norm_rows(prob.X[segment + 1] - prob.X[segment])[0, ci]
-        rows = [(seg - (prob.l0 + 2 * f + SEGMENT_MARGIN)).T, (seg - (prob.L[0, ci] - prob.t) - SEGMENT_MARGIN).T]
-        self.n_rows = 2 * len(ci)
-        nlp = {"x": prob.z, "p": prob.npar, "f": prob.J, "g": ca.vertcat(prob.g, *rows)}
-        self.solver = ca.nlpsol("mount", "ipopt", nlp, prob._ipopt_options())
-        self.g = ca.Function("g", [prob.z, prob.npar], [ca.vertcat(*rows)])
+        rows = ca.vertcat((seg - (prob.l0 + 2 * f + SEGMENT_MARGIN)).T,
+                          (seg - (prob.L[0, ci] - prob.t) - SEGMENT_MARGIN).T)
+        self.n_rows = rows.shape[0]
+        x = ca.SX.sym("lt", 2)
+        z = ca.vertcat(ca.DM(np.asarray(z_route[:-2], float)), x)
+        J, g, r = ca.Function("all", [prob.z, prob.npar], [prob.J, prob.g, rows])(z, n_parallel)
+        self.z_route = np.asarray(z_route, float)
+        self.solver = ca.nlpsol("mount", "ipopt", {"x": x, "f": J, "g": ca.vertcat(g, r)}, prob._ipopt_options())
+        self.g = ca.Function("rows", [x], [r])
+        self.n_parallel = n_parallel
 
-    def solve(self, z0: np.ndarray, n_parallel: int, extra: float):
+    def solve(self, lt0: np.ndarray, extra: float):
         prob = self.prob
-        lbx, ubx = z0.copy(), z0.copy()          # every route point fixed (IPOPT makes them parameters)
-        lbx[-2:], ubx[-2:] = prob.lbx[-2:], prob.ubx[-2:]
         lbg = np.concatenate([np.where(prob._capsule_rows(), -np.inf, prob.lbg), np.full(self.n_rows, extra)])
         ubg = np.concatenate([prob.ubg, np.full(self.n_rows, np.inf)])
         t0 = time.perf_counter()
-        res = self.solver(x0=z0, p=n_parallel, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        res = self.solver(x0=lt0, lbx=prob.lbx[-2:], ubx=prob.ubx[-2:], lbg=lbg, ubg=ubg)
         stats = self.solver.stats()
-        z = np.array(res["x"]).ravel()
+        lt = np.array(res["x"]).ravel()
+        z = self.z_route.copy()
+        z[-2:] = lt
         sol = prob._solution(z, float(res["f"]), stats.get("return_status", "?"), bool(stats.get("success")),
-                             time.perf_counter() - t0, n_parallel, skip_capsules=True)
-        rows = np.array(self.g(z, n_parallel)).ravel()
+                             time.perf_counter() - t0, self.n_parallel, skip_capsules=True)
+        rows = np.array(self.g(lt)).ravel()
         if np.min(rows, initial=np.inf) < extra - 1e-6:
             sol.success = False
             sol.violations["PAM on one segment"] = float(extra - np.min(rows))
@@ -154,14 +160,13 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
             _, most_j = reach_bound(L, float(seg_min[j]), prob.d, cfg, f)
             if need > most_j:
                 continue
-            z0 = best.z.copy()
-            z0[-2] = float(np.clip(min(best.rest_length, most_j), prob.lbx[-2], prob.ubx[-2]))
-            z0[-1] = float(np.clip(L.max() - 2 * f - z0[-2], prob.lbx[-1], prob.ubx[-1]))
-            ms = _MountSolver(prob, int(j))
+            lt0 = np.array([float(np.clip(min(best.rest_length, most_j), prob.lbx[-2], prob.ubx[-2])), 0.0])
+            lt0[1] = float(np.clip(L.max() - 2 * f - lt0[0], prob.lbx[-1], prob.ubx[-1]))
+            ms = _MountSolver(prob, int(j), best.z, best.n_parallel)
             extra = 0.0
             sol = None
             for _ in range(2):       # solve; where the held-out poses miss a limit, tighten once and again
-                sol = ms.solve(z0, best.n_parallel, extra)
+                sol = ms.solve(lt0, extra)
                 if not sol.success:
                     for k, v in sol.violations.items():
                         if v > 1e-6:

@@ -180,7 +180,7 @@ class ActuatorProblem:
                     lbg += [-np.inf] * Gi.shape[0]
                     ubg += [1.0] * Gi.shape[0]
                     fam += [f"1 mm error of point {i + 1} <= sensitivity limit"] * Gi.shape[0]
-        if cfg.one_segment and "one_segment" not in relax and len(X) > 2:
+        if cfg.one_segment_for(data.pam.id) and "one_segment" not in relax and len(X) > 2:
             # the PAM sits on the route's longest segment (at the seed): that segment holds the resting
             # PAM and the actual (possibly stretched) PAM with both fittings; the tendon takes the rest
             seg = [_norm_rows(X[a + 1] - X[a]) for a in range(len(X) - 1)]

@@ -124,12 +124,14 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         for d in cfg.diameters_mm:
             warm = (pam.resting_length_m, pam.tendon_length_m) if (d, 1) == same_seed else (None, None)
             results[(d, 1)] = attempt(d, 1, seed, *warm, "seed")
-        optional = frozenset(name for name, on in (("one_segment", cfg.one_segment),
-                                                   ("sensitivity", cfg.sensitivity_pct > 0)) if on)
-        if optional and not any(s.success for s in results.values()):
-            # the PAM cannot sit on one straight segment of this route, or keep the sensitivity limit, within
-            # the other limits: say so (``relaxed``), solve without them
-            relaxed = optional
+        optional = [name for name, on in (("one_segment", cfg.one_segment_for(pam.id)),
+                                          ("sensitivity", cfg.sensitivity_pct > 0)) if on]
+        for k in range(1, len(optional) + 1):
+            if any(s.success for s in results.values()):
+                break
+            # the PAM cannot sit on one straight segment of this route (then, also not keep the sensitivity
+            # limit) within the other limits: say so (``relaxed``), solve without them
+            relaxed = frozenset(optional[:k])
             for d in cfg.diameters_mm:
                 results[(d, 1)] = attempt(d, 1, seed, None, None, "seed", relaxed)
         feasible = {key: s for key, s in results.items() if s.success}

@@ -148,12 +148,29 @@ def test_apply_and_warm_start(tmp_path, monkeypatch):
     ("max_solve_seconds = -1\n", "max_solve_seconds: must be >= 0"),
     ("[limits]\nbone_mesh = false\npam_clearance = true\n", "pam_clearance: needs limits.bone_mesh"),
     ("[limits]\nbone_mesh = 1\n", "limits.bone_mesh: must be true or false"),
+    ("[limits]\none_segment_actuators = [0]\n", "limits.one_segment_actuators: must be distinct actuator ids"),
+    ("[limits]\none_segment_actuators = 13\n", "limits.one_segment_actuators: must be a list of integers"),
+    ("[limits]\nmount_cost = -0.1\n", "limits.mount_cost: must be >= 0"),
+    ("[limits]\nmount = \"yes\"\n", "limits.mount: must be true or false"),
 ])
 def test_bad_config(tmp_path, text, match):
     f = tmp_path / "run.toml"
     f.write_text(text)
     with pytest.raises(DataFileError, match=match):
         load_config(f)
+
+
+def test_one_segment_actuators_must_name_actuators_of_the_design(tmp_path):
+    """An explicit one_segment_actuators list naming no actuator of the seed design is an error naming the
+    key; the default list (the v2 seed's gastrocnemii) never breaks another design."""
+    small = Design("small", (load_design().pam(4),))
+    f = tmp_path / "run.toml"
+    f.write_text("[limits]\none_segment_actuators = [4, 99]\n")
+    with pytest.raises(DataFileError, match=r"one_segment_actuators: unknown actuator id\(s\) \[99\]"):
+        load_config(f).check_design(small)
+    RunConfig().check_design(small)
+    assert RunConfig().one_segment_for(13) and not RunConfig().one_segment_for(4)
+    assert RunConfig(one_segment=True, one_segment_actuators=[]).one_segment_for(4)
 
 
 def test_config_regions(tmp_path):
