@@ -33,6 +33,7 @@ import numpy as np
 
 from pamkin import festo
 from pamkin.design import Pam
+from pamkin.audit import body_room, segment_names
 from pamkin.errors import RangeWarning
 from pamkin.paths import PathSet
 
@@ -41,11 +42,6 @@ from .problem import SEGMENT_MARGIN, _norm_rows
 
 #: Segments tried per route (the longest at their shortest constraint sample first).
 N_SEGMENTS = 2
-
-
-def segment_names(pam: Pam) -> list[str]:
-    """``"p1->p2"``-style names of a route's segments."""
-    return [f"{a.name}->{b.name}" for a, b in zip(pam.points[:-1], pam.points[1:])]
 
 
 def held_out_margin(pam: Pam, model, q: np.ndarray, segment: int, fitting: float) -> float:
@@ -59,8 +55,7 @@ def held_out_margin(pam: Pam, model, q: np.ndarray, segment: int, fitting: float
         X, _ = ps.point_positions(state)
         L = ps.evaluate(state, moment_arms=False).lengths[:, 0]
     seg = np.linalg.norm(X[:, segment + 1] - X[:, segment], axis=1)
-    body = np.maximum(pam.resting_length_m, L - 2 * fitting - pam.tendon_length_m) + 2 * fitting
-    return float(np.min(seg - body))
+    return float(np.min(body_room(seg, pam.resting_length_m, L - 2 * fitting - pam.tendon_length_m, fitting)))
 
 
 def reach_bound(L: np.ndarray, seg_min: float, diameter: int, cfg, fitting: float) -> tuple[float, float]:
@@ -82,11 +77,7 @@ class _MountSolver:
 
     def __init__(self, prob, segment: int, z_route: np.ndarray, n_parallel: int) -> None:
         self.prob = prob
-        ci = [int(s) for s in prob.data.constraint_idx]
-        f = prob.data.fitting_length
-        seg = _norm_rows(prob.X[segment + 1] - prob.X[segment])[0, ci]
-        rows = ca.vertcat((seg - (prob.l0 + 2 * f + SEGMENT_MARGIN)).T,
-                          (seg - (prob.L[0, ci] - prob.t) - SEGMENT_MARGIN).T)
+        rows = ca.vertcat(*prob.one_segment_rows(segment))
         self.n_rows = rows.shape[0]
         x = ca.SX.sym("lt", 2)
         z = ca.vertcat(ca.DM(np.asarray(z_route[:-2], float)), x)

@@ -183,15 +183,13 @@ class ActuatorProblem:
         if cfg.one_segment_for(data.pam.id) and "one_segment" not in relax and len(X) > 2:
             # the PAM sits on the route's longest segment (at the seed): that segment holds the resting
             # PAM and the actual (possibly stretched) PAM with both fittings; the tendon takes the rest
-            seg = [_norm_rows(X[a + 1] - X[a]) for a in range(len(X) - 1)]
             seed_len = [float(np.mean(np.linalg.norm(self._seed_world(a + 1) - self._seed_world(a), axis=1)))
                         for a in range(len(X) - 1)]
             self.mount = int(np.argmax(seed_len))
-            sj = seg[self.mount][0, ci]
-            need_rest = self.l0 + 2 * data.fitting_length + SEGMENT_MARGIN
-            g.append((sj - need_rest).T); lbg += [0.0] * len(ci); ubg += [np.inf] * len(ci)
+            rest_row, actual_row = self.one_segment_rows(self.mount)
+            g.append(rest_row); lbg += [0.0] * len(ci); ubg += [np.inf] * len(ci)
             fam += [f"PAM fits on segment {self.mount + 1}-{self.mount + 2} (resting)"] * len(ci)
-            g.append((sj - (self.L[0, ci] - self.t) - SEGMENT_MARGIN).T); lbg += [0.0] * len(ci); ubg += [np.inf] * len(ci)
+            g.append(actual_row); lbg += [0.0] * len(ci); ubg += [np.inf] * len(ci)
             fam += [f"PAM fits on segment {self.mount + 1}-{self.mount + 2} (actual)"] * len(ci)
         elif len(X) == 2:
             self.mount = 0
@@ -268,6 +266,17 @@ class ActuatorProblem:
             lbx += [lmin, 0.0]
             ubx += [lmax, 5.0]
         self.lbx, self.ubx = np.array(lbx), np.array(ubx)
+
+    def one_segment_rows(self, segment: int):
+        """The PAM on route segment ``segment`` at every constraint sample, as two (S_c, 1) CasADi rows
+        ≥ 0: the segment holds the resting PAM, and the actual (possibly stretched) PAM, with both fittings
+        and :data:`SEGMENT_MARGIN` (the tendon takes the rest of the route). The audit's measure is
+        :func:`pamkin.audit.body_room`."""
+        ci = [int(s) for s in self.data.constraint_idx]
+        seg = _norm_rows(self.X[segment + 1] - self.X[segment])[0, ci]
+        rest = (seg - (self.l0 + 2 * self.data.fitting_length + SEGMENT_MARGIN)).T
+        actual = (seg - (self.L[0, ci] - self.t) - SEGMENT_MARGIN).T
+        return rest, actual
 
     def _seed_world(self, i: int) -> np.ndarray:
         """(S, 3) world positions of route point ``i`` at its seed location (or offset)."""

@@ -466,7 +466,7 @@ def clearance_pass(seed: Design, results: list[ActuatorResult], cfg: RunConfig, 
 FIT_COST_FACTOR = 3.0
 
 
-def mount_lines(results: list[ActuatorResult]) -> list[str]:
+def mount_lines(results: list[ActuatorResult], cfg: RunConfig) -> list[str]:
     """The one-segment stage's outcome (:mod:`optimize.mount`): how many PAMs sit on one straight segment,
     then one line per PAM that does not, naming why with its numbers."""
     done = [r for r in results if r.mount]
@@ -474,7 +474,7 @@ def mount_lines(results: list[ActuatorResult]) -> list[str]:
         return []
     on = [r for r in done if r.mount["mounted"]]
     out = [f"one straight segment: {len(on)} of {len(done)} PAMs (resting and tendon length re-solved on the "
-           f"fixed route; mount_cost {_STATE['cfg'].mount_cost:g})"]
+           f"fixed route; mount_cost {cfg.mount_cost:g})"]
     out += [f"one straight segment: actuator {r.id} {r.name} ({r.mount['reason']}): {r.mount['line']}"
             for r in done if not r.mount["mounted"]]
     return out
@@ -756,7 +756,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
     costly = fit_cost_lines(results)
     for line in costly:
         print(f"bone-mesh: {line}", file=stream, flush=True)
-    for line in mount_lines(results):
+    for line in mount_lines(results, cfg):
         print(line, file=stream, flush=True)
     print("solving done; checking every actuator on dense grids (numpy pipeline) ...", file=stream, flush=True)
     summary = summarize(seed, new, results, cfg, progress=_check_progress(stream))

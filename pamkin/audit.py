@@ -257,13 +257,22 @@ def _route_positions(paths: PathSet, state, k: int) -> np.ndarray:
     return pts
 
 
-def _segment_names(pam) -> list[str]:
+def segment_names(pam) -> list[str]:
+    """``"p1->p2"``-style names of a route's segments."""
     return [f"{p.name}->{q.name}" for p, q in zip(pam.points[:-1], pam.points[1:])]
 
 
-def _mount(seg_len: np.ndarray, need: np.ndarray) -> tuple[int, float]:
-    """Segment that best holds the PAM: max over segments of min over samples (length − need)."""
-    margin = (seg_len - need[:, None]).min(axis=0)
+def body_room(seg_len: np.ndarray, resting_length: float, pam_len: np.ndarray, fitting_length: float) -> np.ndarray:
+    """Room [m] left on route segments of lengths ``seg_len`` (S, …) by the PAM body — its resting length
+    or its actual length ``pam_len`` (S,), whichever is longer, plus both fittings (negative: the PAM does
+    not fit there and would bend over the segment's end)."""
+    need = np.maximum(resting_length, pam_len) + 2 * fitting_length
+    return seg_len - need.reshape(need.shape + (1,) * (np.ndim(seg_len) - 1))
+
+
+def _mount(room: np.ndarray) -> tuple[int, float]:
+    """Segment that best holds the PAM: max over segments of min over samples of :func:`body_room`."""
+    margin = room.min(axis=0)
     j = int(np.argmax(margin))
     return j, float(margin[j])
 
@@ -411,15 +420,13 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
         warnings.simplefilter("ignore", RangeWarning)
         st_all = right.evaluate(q_all)
         ks_all = skel.kinematics.forward(q_all, warn_range=False)
-    fit = 2 * des.fitting_length_m
     mounts = []
     for k, (pam, row) in enumerate(zip(des.pams, rows)):
         pts = _route_positions(right.paths, ks_all, k)
         seg_len = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=2)
         pam_len = st_all.pam_lengths[:, k]
-        need = np.maximum(pam.resting_length_m, pam_len) + fit
-        j, margin = _mount(seg_len, need)
-        seg_names = _segment_names(pam)
+        j, margin = _mount(body_room(seg_len, pam.resting_length_m, pam_len, des.fitting_length_m))
+        seg_names = segment_names(pam)
         mounts.append(j)
         row["tendon_ok"] = bool(pam.tendon_length_m >= 0)
         row["on_one_segment"] = bool(margin >= 0)
@@ -688,7 +695,7 @@ def _bone_checks(right: PamRobot, bones, sets: list, rows: list[dict], step: flo
         row["points_over_bracket"] = sum(1 for p in fixed if p["own_bone_distance_m"] > thr["bracket_max_m"])
         row["max_bracket_m"] = max((p["own_bone_distance_m"] for p in fixed), default=None)
         segs = []
-        for name in _segment_names(pam):
+        for name in segment_names(pam):
             dp = float(max(seg_depth[si], 0.0))
             segs.append({"segment": name, "penetration_m": dp,
                          "bone": bones.bodies[seg_bone[si]] if dp > 0 and seg_bone[si] >= 0 else None})
