@@ -63,6 +63,8 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      clear of bone still gaining >= 5 % a round gets up to 6 more)
     bone_seed_start = true       # (v2) the bone-mesh rounds also start from the seed route (points moved onto
                                  #      their bone's 3..18 mm band); the better of the two results is kept
+    bracket_fit = false          # (v2, with bone_mesh) the fit itself keeps attachment points 3..18 mm out of
+                                 #      their bone (smooth bone-distance splines, optimize.bracket)
     pam_clearance = false        # (v2, with bone_mesh) second pass: routes that hit another PAM's body are
                                  #      solved again with the first-pass bodies as obstacles
     max_units = 60               # (v2) PAM units of the whole robot (both sides; 0: no limit): the diameter
@@ -97,7 +99,7 @@ _SECTIONS = {
                "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths",
                "move_moving_points": "move_moving_points", "rated_force": "rated_force",
                "one_segment": "one_segment", "one_segment_actuators": "one_segment_actuators", "mount": "mount", "mount_cost": "mount_cost", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
-               "bone_seed_start": "bone_seed_start",
+               "bone_seed_start": "bone_seed_start", "bracket_fit": "bracket_fit",
                "max_units": "max_units", "walking_min": "walking_min",
                "pam_clearance": "pam_clearance"},
 }
@@ -164,6 +166,7 @@ class RunConfig:
     bone_mesh: bool = True
     bone_rounds: int = 10
     bone_seed_start: bool = True
+    bracket_fit: bool = False
     pam_clearance: bool = False
     max_units: int = 60
     walking_min: float = 0.9

@@ -31,6 +31,7 @@ from pamkin import festo
 from pamkin.design import mirror_name
 from pamkin.paths import path_length, path_moment_arm, point_velocity
 
+from .bracket import BAND as BRACKET_BAND
 from .config import RunConfig
 from .limit_check import limit_rows
 from .samples import CLEARANCE_MARGIN, CLEARANCE_T, ActuatorData, is_free
@@ -89,7 +90,8 @@ class ActuatorProblem:
     """CasADi expressions of one actuator's problem for a given diameter and parallel count."""
 
     def __init__(self, data: ActuatorData, cfg: RunConfig, diameter: int,
-                 seed_points: list[np.ndarray], regions: list[list[float]], relax: frozenset = frozenset()) -> None:
+                 seed_points: list[np.ndarray], regions: list[list[float]], relax: frozenset = frozenset(),
+                 bracket: dict | None = None) -> None:
         self.data, self.cfg, self.d = data, cfg, diameter
         self.relax = relax           # constraint groups left out ("one_segment"): the run reports them
         self.mount: int | None = None  # the segment the PAM sits on (one_segment)
@@ -243,6 +245,16 @@ class ActuatorProblem:
                 lbg += [self.midline]
                 ubg += [np.inf]
                 fam += [f"{pt.name} leaves room for its left copy (z >= PAM outer radius + {1e3 * MIDLINE_MARGIN:g} mm)"]
+        # attachment points on their own bone (``bracket``: point index -> smooth signed distance to its
+        # bone, optimize.bracket): approximate rows, replaced by the exact mesh rows in the bone rounds
+        self.bracket = dict(bracket or {})
+        for i, f in sorted(self.bracket.items()):
+            g.append(f(loc[i]))
+            lbg += [BRACKET_BAND[0]]
+            ubg += [BRACKET_BAND[1]]
+            fam += [f"{pts[i].name} on its bone ({1e3 * BRACKET_BAND[0]:g}..{1e3 * BRACKET_BAND[1]:g} mm out, "
+                    f"bone distance spline)"]
+            capsule_rows.append(len(fam) - 1)
         self.g = ca.vertcat(*g)
         self.lbg, self.ubg, self.family = np.array(lbg), np.array(ubg), fam
         self._capsule_mask = np.zeros(len(fam), dtype=bool)
@@ -386,12 +398,13 @@ class ActuatorProblem:
                                  np.zeros(npt) if hard_balls else np.maximum(np.sum((pts - c) ** 2, axis=1) - r2, 0.0)])
         solver = self.cut_solver(k)
         lbg = np.where(self._capsule_rows(), -np.inf, self.lbg)     # the mesh rows replace the capsules
+        ubg = np.where(self._capsule_rows(), np.inf, self.ubg)      # (and the bone-distance splines)
         res = solver(x0=np.concatenate([z0, slack0]),
                      p=np.concatenate([[n_parallel], Wp.ravel(order="F"), w0p, c.ravel(), r2]),
                      lbx=np.concatenate([lbx, np.zeros(k + npt)]),
                      ubx=np.concatenate([ubx, row_ub, np.zeros(npt) if hard_balls else np.full(npt, np.inf)]),
                      lbg=np.concatenate([lbg, np.zeros(k + npt)]),
-                     ubg=np.concatenate([self.ubg, np.full(k + npt, np.inf)]))
+                     ubg=np.concatenate([ubg, np.full(k + npt, np.inf)]))
         stats = solver.stats()
         x = np.array(res["x"]).ravel()
         z = x[:nz]

@@ -60,6 +60,28 @@ class ActuatorResult:
 _STATE: dict = {}
 
 
+def _route_box(pam: Pam, cfg: RunConfig) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Seed location (or offset) and box half-widths [m] of every route point of ``pam``."""
+    seed = [np.array(getattr(p, "location", (0.0, 0.0, 0.0)), float) for p in pam.points]
+    regions = [np.array(cfg.region(pam.id, p.name), float) if is_free(p) or cfg.move_moving_points
+               else np.zeros(3) for p in pam.points]
+    return seed, regions
+
+
+def _bracket(pam: Pam, seed: list[np.ndarray], regions: list[np.ndarray], cfg: RunConfig) -> dict | None:
+    """The bone-distance splines of ``pam``'s points for the fit (``[limits] bracket_fit``; built once per
+    worker and route box, :func:`optimize.bracket.bracket_splines`), or None."""
+    if not (cfg.bone_mesh and cfg.bracket_fit):
+        return None
+    from .bracket import bracket_splines  # noqa: PLC0415
+
+    key = (pam.id, np.round(np.ravel(seed), 9).tobytes(), np.ravel(regions).tobytes())
+    cache = _STATE.setdefault("bracket", {})
+    if key not in cache:
+        cache[key] = bracket_splines(pam, _STATE["bones"], seed, regions)
+    return cache[key]
+
+
 def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     """Outer loop (diameter, n_parallel) and multi-start for one actuator (runs in a worker)."""
     from .problem import ActuatorProblem  # noqa: PLC0415  (casadi only in workers / optimiser)
@@ -70,9 +92,7 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     pam: Pam = data.pam
     t0 = time.perf_counter()
     # decision variables: locations of body-fixed points, offsets (seed 0) of moving points
-    seed = [np.array(getattr(p, "location", (0.0, 0.0, 0.0)), float) for p in pam.points]
-    regions = [np.array(cfg.region(pam.id, p.name), float) if is_free(p) or cfg.move_moving_points
-               else np.zeros(3) for p in pam.points]
+    seed, regions = _route_box(pam, cfg)
     attempts, best = [], None
     candidates: dict = {}
     problems: dict = {}
@@ -87,7 +107,8 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     def attempt(d: int, n: int, points, rest, tendon, label: str, relax=frozenset(), evaluate: bool = False):
         nonlocal best
         if (d, relax) not in problems:
-            problems[(d, relax)] = ActuatorProblem(data, cfg, d, seed, regions, relax)
+            problems[(d, relax)] = ActuatorProblem(data, cfg, d, seed, regions, relax,
+                                                   _bracket(pam, seed, regions, cfg))
         prob = problems[(d, relax)]
         z0 = prob.initial_guess(points, rest, tendon)
         sol = prob.evaluate(z0, n) if evaluate else prob.solve(z0, n)
@@ -284,16 +305,14 @@ def _finish_choice(task: tuple) -> ActuatorResult:
     pam: Pam = data.pam
     if key is None:                   # nothing feasible: the first phase's (failed) result stands
         return first
-    seed = [np.array(getattr(p, "location", (0.0, 0.0, 0.0)), float) for p in pam.points]
-    regions = [np.array(cfg.region(pam.id, p.name), float) if is_free(p) or cfg.move_moving_points
-               else np.zeros(3) for p in pam.points]
+    seed, regions = _route_box(pam, cfg)
     if key in first.candidates:
         _, sol, relax = first.candidates[key]
-        prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax)
+        prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax, _bracket(pam, seed, regions, cfg))
         start = "unit budget choice"
     else:
         relax = frozenset(first.relaxed)
-        prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax)
+        prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax, _bracket(pam, seed, regions, cfg))
         sol = prob.solve(np.clip(np.asarray(z_start, float), prob.lbx, prob.ubx), key[1])
         start = "walking check (from the solved route)"
         if not sol.success:
@@ -396,10 +415,9 @@ def _clear_actuator(k: int) -> ActuatorResult:
     data = _STATE["data"][k]
     first: ActuatorResult = _STATE["first"][k]
     pam: Pam = data.pam
-    seed = [np.array(getattr(p, "location", (0.0, 0.0, 0.0)), float) for p in pam.points]
-    regions = [np.array(cfg.region(pam.id, p.name), float) if is_free(p) or cfg.move_moving_points
-               else np.zeros(3) for p in pam.points]
-    prob = ActuatorProblem(data, cfg, first.pam.diameter_mm, seed, regions, frozenset(first.relaxed))
+    seed, regions = _route_box(pam, cfg)
+    prob = ActuatorProblem(data, cfg, first.pam.diameter_mm, seed, regions, frozenset(first.relaxed),
+                           _bracket(pam, seed, regions, cfg))
     sol = prob.evaluate(first.z, first.n_parallel)
     q, n_right, bodies, radius, mount = _STATE["obstacles"][k]
     cuts = BoneCuts(pam, _STATE["human"], _STATE["bones"], q, n_right)

@@ -1,0 +1,100 @@
+"""Attachment points on their bone in the fit itself (optimize.bracket): the bone-distance spline
+against exact distances, and a toy fit whose points would leave their bones without it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import trimesh
+
+import pamkin
+from pamkin.bones import BoneSet
+from pamkin.design import Design, Pam
+from pamkin.optimize.bracket import BAND, bracket_splines, distance_spline
+from pamkin.optimize.config import FAST_FIT, RunConfig
+from pamkin.optimize.problem import ActuatorProblem
+from pamkin.optimize.samples import actuator_data
+from pamkin.osim import PathPoint
+from pamkin.robot import PamRobot
+from pamkin.rom import RangeOfMotion
+
+DATA = Path(__file__).parent / "data"
+
+
+def _box(lo, hi):
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    m = trimesh.creation.box(extents=hi - lo)
+    m.apply_translation((lo + hi) / 2)
+    return m.vertices, m.faces
+
+
+def test_distance_spline_matches_the_sphere_distance_and_its_gradient():
+    """Around a sphere of radius 30 mm (a 4-times subdivided icosphere: its own distance to the true sphere
+    is < 0.1 mm), the spline's value is within 0.2 mm of |x| - r (analytic) and its gradient (CasADi's)
+    within 0.1 of the radial unit vector, at random points 2..25 mm outside the surface; negative inside."""
+    model = pamkin.load_osim(DATA / "two_body.osim")
+    s = trimesh.creation.icosphere(subdivisions=4, radius=0.03)
+    bones = BoneSet.from_meshes(model, {"base": [(s.vertices, s.faces)]})
+    f = distance_spline(bones, "base", np.full(3, -0.06), np.full(3, 0.06))
+    x = ca.MX.sym("x", 3)
+    grad = ca.Function("g", [x], [ca.gradient(f(x), x)])
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=(60, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    r = rng.uniform(0.032, 0.055, 60)
+    for ui, ri in zip(u, r):
+        p = ui * ri
+        assert abs(float(f(p)) - (ri - 0.03)) < 2e-4
+        assert np.linalg.norm(np.array(grad(p)).ravel() - ui) < 0.1
+    assert float(f(np.array([0.0, 0.01, 0.0]))) < -0.015
+
+
+def test_bracket_rows_keep_a_toy_fit_on_its_bones():
+    """The toy route of the bone-mesh test, each point's target 30 mm off its block: the plain fit puts
+    both points there (outside the band), the fit with the bone-distance rows puts both in the band
+    (exact distances, libigl) at a fit cost; a point whose box holds no band gets no row."""
+    model = pamkin.load_osim(DATA / "two_body.osim")
+    rom = RangeOfMotion({"angle": (-0.2, 0.2)})
+    origin_block = _box((0.0, -0.08, -0.02), (0.02, -0.02, 0.02))
+    insertion_block = _box((0.0, -0.15, -0.02), (0.02, -0.09, 0.02))
+    bones = BoneSet.from_meshes(model, {"base": [origin_block], "arm": [insertion_block]})
+    route = (PathPoint("o", "base", (0.05, -0.05, 0.0)), PathPoint("i", "arm", (0.05, -0.12, 0.0)))
+    seed = Pam(1, "toy", (), "angle", (), 10, 1, 0.25, 0.0, route)   # the target: its own torque
+    seed_robot = PamRobot(Design("seed", (seed,)), model, sides=("r",))
+
+    def target(q):
+        return seed_robot.evaluate(q).torques[:, 0, :]
+
+    cfg = RunConfig(**{**FAST_FIT, "bone_mesh": True}, regularization=0.0, bone_clearance=False, n_primary=21,
+                    regions={"1": [0.04, 0.04, 0.0]})
+    data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
+    seed_points = [np.array(p.location) for p in seed.points]
+    regions = [np.array(cfg.region(1, p.name)) for p in seed.points]
+
+    def own(points):
+        return [bones.body_signed_distance(p.body, np.array([loc]))[0] for p, loc in zip(seed.points, points)]
+
+    plain = ActuatorProblem(data, cfg, 10, seed_points, regions)
+    sol = plain.solve(plain.initial_guess(seed_points, None, None), 1)
+    assert sol.success and all(d > 0.025 for d in own(sol.points)), own(sol.points)
+    splines = bracket_splines(seed, bones, seed_points, regions)
+    assert sorted(splines) == [0, 1]
+    prob = ActuatorProblem(data, cfg, 10, seed_points, regions, bracket=splines)
+    fit = prob.solve(prob.initial_guess(seed_points, None, None), 1)
+    assert fit.success, fit.status
+    d = own(fit.points)
+    print("exact bone distances of the fitted points [mm]:", np.round(1e3 * np.array(d), 2))
+    assert all(BAND[0] - 2e-4 <= x <= BAND[1] + 2e-4 for x in d), d
+    assert fit.objective >= sol.objective
+    # the bone rounds drop these rows (the exact mesh rows replace them): no violation counted there
+    z = fit.z.copy()
+    z[0] += 0.03                                        # the origin 30 mm further out
+    assert float(splines[0](z[:3])) > BAND[1] + 0.01
+    assert not [k for k in prob.evaluate(z, 1).violations if "bone distance spline" in k]
+    assert [k for k in fit.violations if "bone distance spline" in k]       # the fit itself has them
+    # a box with no point in the band: no row (the rows could not be met)
+    far = [np.array([0.2, -0.05, 0.0]), seed_points[1]]
+    boxes = [np.array([0.01, 0.01, 0.0]), np.array([0.04, 0.04, 0.0])]
+    assert sorted(bracket_splines(seed, bones, far, boxes)) == [1]
