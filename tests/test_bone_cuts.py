@@ -19,15 +19,9 @@ from pamkin.optimize.samples import actuator_data
 from pamkin.osim import PathPoint
 from pamkin.robot import PamRobot
 from pamkin.rom import RangeOfMotion
+from toy_route import INSERTION_BLOCK, ORIGIN_BLOCK, box, toy_problem
 
 DATA = Path(__file__).parent / "data"
-
-
-def _box(lo, hi):
-    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    m = trimesh.creation.box(extents=hi - lo)
-    m.apply_translation((lo + hi) / 2)
-    return m.vertices, m.faces
 
 
 def test_closest_point_and_normal_are_the_distance_gradient():
@@ -58,8 +52,8 @@ def test_exit_point_leaves_overlapping_meshes():
     from pamkin.optimize.bone_cuts import exit_point
 
     model = pamkin.load_osim(DATA / "two_body.osim")
-    plate_a = _box([-0.05, -0.005, -0.05], [0.05, 0.005, 0.05])     # |y| < 5 mm
-    plate_b = _box([-0.005, -0.05, -0.05], [0.005, 0.05, 0.05])     # |x| < 5 mm
+    plate_a = box([-0.05, -0.005, -0.05], [0.05, 0.005, 0.05])     # |y| < 5 mm
+    plate_b = box([-0.005, -0.05, -0.05], [0.005, 0.05, 0.05])     # |x| < 5 mm
     bones = BoneSet.from_meshes(model, {"base": [plate_a, plate_b]})
     x = np.array([0.004, 0.0045, 0.0])
     d, c, n = bones.body_closest("base", x[None])
@@ -103,24 +97,9 @@ def test_mesh_rows_keep_a_toy_route_out_of_a_toy_mesh(monkeypatch):
     measured independently on a dense grid of the joint angle: the route clears the meshes (the
     segment's centre line at most 2 mm into bone, the audit's limit; the rows ask for +1 mm at the
     check poses) and both points sit outside their bones within 20 mm; the fit stays close."""
-    model = pamkin.load_osim(DATA / "two_body.osim")
-    rom = RangeOfMotion({"angle": (-0.2, 0.2)})
-    origin_block = _box((0.0, -0.08, -0.02), (0.02, -0.02, 0.02))
-    bump = _box((0.038, -0.22, -0.015), (0.06, -0.18, 0.015))
-    insertion_block = _box((0.0, -0.15, -0.02), (0.02, -0.09, 0.02))
-    bones = BoneSet.from_meshes(model, {"base": [origin_block, bump], "arm": [insertion_block]})
-    route = (PathPoint("o", "base", (0.05, -0.05, 0.0)), PathPoint("i", "arm", (0.05, -0.12, 0.0)))
-    seed = Pam(1, "toy", (), "angle", (), 10, 1, 0.25, 0.0, route)   # the target: its own torque
-    seed_robot = PamRobot(Design("seed", (seed,)), model, sides=("r",))
-
-    def target(q):
-        return seed_robot.evaluate(q).torques[:, 0, :]
-
-    cfg = RunConfig(**{**FAST_FIT, "bone_mesh": True}, regularization=0.0, bone_clearance=False, n_primary=21,
-                    regions={"1": [0.06, 0.06, 0.0]})
-    data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
-    seed_points = [np.array(p.location) for p in seed.points]
-    regions = [np.array(cfg.region(1, p.name)) for p in seed.points]
+    model, rom, seed, cfg, data, seed_points, regions = toy_problem(0.06)
+    bump = box((0.038, -0.22, -0.015), (0.06, -0.18, 0.015))
+    bones = BoneSet.from_meshes(model, {"base": [box(*ORIGIN_BLOCK), bump], "arm": [box(*INSERTION_BLOCK)]})
     prob = ActuatorProblem(data, cfg, 10, seed_points, regions)
     sol = prob.solve(prob.initial_guess(seed_points, None, None), 1)
     assert sol.success, sol.status
@@ -248,8 +227,8 @@ def test_pam_rows_move_a_toy_route_off_another_pam_body():
 
     model = pamkin.load_osim(DATA / "two_body.osim")
     rom = RangeOfMotion({"angle": (-0.2, 0.2)})
-    bones = BoneSet.from_meshes(model, {"base": [_box((0.0, -0.08, -0.03), (0.02, -0.02, 0.03))],
-                                        "arm": [_box((0.0, -0.15, -0.03), (0.02, -0.09, 0.03))]})
+    bones = BoneSet.from_meshes(model, {"base": [box((0.0, -0.08, -0.03), (0.02, -0.02, 0.03))],
+                                        "arm": [box((0.0, -0.15, -0.03), (0.02, -0.09, 0.03))]})
     route = (PathPoint("o", "base", (0.03, -0.05, 0.0)), PathPoint("i", "arm", (0.03, -0.12, 0.0)))
     seed = Pam(1, "toy", (), "angle", (), 10, 1, 0.25, 0.0, route)
     seed_robot = PamRobot(Design("seed", (seed,)), model, sides=("r",))

@@ -11,23 +11,11 @@ import trimesh
 
 import pamkin
 from pamkin.bones import BoneSet
-from pamkin.design import Design, Pam
 from pamkin.optimize.bracket import BAND, bracket_splines, distance_spline
-from pamkin.optimize.config import FAST_FIT, RunConfig
 from pamkin.optimize.problem import ActuatorProblem
-from pamkin.optimize.samples import actuator_data
-from pamkin.osim import PathPoint
-from pamkin.robot import PamRobot
-from pamkin.rom import RangeOfMotion
+from toy_route import INSERTION_BLOCK, ORIGIN_BLOCK, box, toy_problem
 
 DATA = Path(__file__).parent / "data"
-
-
-def _box(lo, hi):
-    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    m = trimesh.creation.box(extents=hi - lo)
-    m.apply_translation((lo + hi) / 2)
-    return m.vertices, m.faces
 
 
 def test_distance_spline_matches_the_sphere_distance_and_its_gradient():
@@ -55,23 +43,8 @@ def test_bracket_rows_keep_a_toy_fit_on_its_bones():
     """The toy route of the bone-mesh test, each point's target 30 mm off its block: the plain fit puts
     both points there (outside the band), the fit with the bone-distance rows puts both in the band
     (exact distances, libigl) at a fit cost; a point whose box holds no band gets no row."""
-    model = pamkin.load_osim(DATA / "two_body.osim")
-    rom = RangeOfMotion({"angle": (-0.2, 0.2)})
-    origin_block = _box((0.0, -0.08, -0.02), (0.02, -0.02, 0.02))
-    insertion_block = _box((0.0, -0.15, -0.02), (0.02, -0.09, 0.02))
-    bones = BoneSet.from_meshes(model, {"base": [origin_block], "arm": [insertion_block]})
-    route = (PathPoint("o", "base", (0.05, -0.05, 0.0)), PathPoint("i", "arm", (0.05, -0.12, 0.0)))
-    seed = Pam(1, "toy", (), "angle", (), 10, 1, 0.25, 0.0, route)   # the target: its own torque
-    seed_robot = PamRobot(Design("seed", (seed,)), model, sides=("r",))
-
-    def target(q):
-        return seed_robot.evaluate(q).torques[:, 0, :]
-
-    cfg = RunConfig(**{**FAST_FIT, "bone_mesh": True}, regularization=0.0, bone_clearance=False, n_primary=21,
-                    regions={"1": [0.04, 0.04, 0.0]})
-    data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
-    seed_points = [np.array(p.location) for p in seed.points]
-    regions = [np.array(cfg.region(1, p.name)) for p in seed.points]
+    model, _, seed, cfg, data, seed_points, regions = toy_problem(0.04)
+    bones = BoneSet.from_meshes(model, {"base": [box(*ORIGIN_BLOCK)], "arm": [box(*INSERTION_BLOCK)]})
 
     def own(points):
         return [bones.body_signed_distance(p.body, np.array([loc]))[0] for p, loc in zip(seed.points, points)]
