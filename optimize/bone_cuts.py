@@ -489,7 +489,7 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start:
         if log is not None:
             log.append(f"  bone round {r + 1}: {len(W)} rows, trust {1e3 * rho:.1f} mm, {s.status}, "
                        f"violation {1e3 * ms.violation():.2f} mm, objective {s.objective:.4g}"
-                       f"{'' if accept else ' (rejected)'}")
+                       f"{'' if accept else ' (rejected)'} ({s.seconds:.1f} s)")
         if accept:
             key = stage_key(ms, s)
             if not best.success or (best is sol and not keep_start) or key < best_key:

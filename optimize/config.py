@@ -21,7 +21,7 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
     seed = 0                     # random seed of the perturbations
     workers = 2                  # processes (actuators are independent problems)
     max_iter = 400               # IPOPT iterations per solve
-    max_solve_seconds = 20.0     # IPOPT CPU-time limit per solve [s] (0: none); a solve that hits it is
+    max_solve_seconds = 12.0     # IPOPT CPU-time limit per solve [s] (0: none); a solve that hits it is
                                  # treated as failed (infeasible diameter / parallel count tries end sooner)
 
     [samples]
@@ -139,7 +139,7 @@ class RunConfig:
     seed: int = 0
     workers: int = 2
     max_iter: int = 400
-    max_solve_seconds: float = 20.0
+    max_solve_seconds: float = 12.0
     n_primary: int = 25
     n_secondary: int = 7
     n_constraint: int = 5

@@ -762,7 +762,8 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
     for r in results:
         log.append(f"actuator {r.id} {r.name}: {r.status} in {r.seconds:.1f} s; attempts: " +
                    "; ".join(f"{a['diameter_mm']} mm x{a['n_parallel']} {a['start']}: {a['status']} "
-                             f"J={a['objective']:.4g}{'' if a['feasible'] else ' (infeasible)'}" for a in r.attempts))
+                             f"J={a['objective']:.4g}{'' if a['feasible'] else ' (infeasible)'} ({a['seconds']:.1f} s)"
+                             for a in r.attempts))
         if r.bone:
             log.extend(r.bone["log"])
             log.append(f"  bone-mesh clearance of actuator {r.id} {r.name}: " + bone_line(r.bone))
