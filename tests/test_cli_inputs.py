@@ -248,3 +248,28 @@ def test_tests_write_no_cache_outside_checkout_and_temp():
     assert cache_dir().resolve() == cache
     inside = [Path(tempfile.gettempdir()).resolve(), ROOT.resolve()]
     assert any(cache.is_relative_to(p) for p in inside), cache
+
+
+def test_thesis_quick_audit_is_cached_by_its_inputs(tmp_path, monkeypatch):
+    """`pamkin optimize` audits the thesis design once per set of inputs: the second call reads the cache
+    (no audit), other options give another key, and a damaged entry is computed again."""
+    import pamkin.audit
+    from pamkin.audit import AuditOptions
+    from pamkin.cli import optimize as cli_opt
+
+    monkeypatch.setenv("PAMKIN_CACHE", str(tmp_path))
+    calls = []
+
+    def fake(design, options=None):
+        calls.append((design, options))
+        return {"design": design, "n_random": options.n_random}
+
+    monkeypatch.setattr(pamkin.audit, "audit_design", fake)
+    first = cli_opt.thesis_quick_audit()
+    assert first == {"design": "thesis", "n_random": 500} and len(calls) == 1
+    assert cli_opt.thesis_quick_audit() == first and len(calls) == 1            # from the cache
+    entries = list((tmp_path / "audit").glob("thesis_quick_*.pickle"))
+    assert len(entries) == 1
+    assert cli_opt._audit_inputs_key(AuditOptions.quick()) != cli_opt._audit_inputs_key(AuditOptions.quick(n_random=501))
+    entries[0].write_bytes(b"not a pickle")
+    assert cli_opt.thesis_quick_audit() == first and len(calls) == 2            # damaged: computed again

@@ -120,7 +120,7 @@ def audit_side_by_side(out: Path, stream) -> str:
     print("auditing the result and the thesis design (pamkin audit --quick) ...", file=stream, flush=True)
     try:
         res = audit_design(out, options=AuditOptions.quick())
-        thesis = audit_design("thesis", options=AuditOptions.quick())
+        thesis = thesis_quick_audit()
     except PamkinError as e:      # e.g. no bone meshes or walking trial on this machine: the run stands
         return f"\nAudit skipped ({e}); run pamkin audit {out} with --geometry/--ik where that data is.\n"
     atomic_write(out / "audit.json", json.dumps(res.to_dict(), indent=1, default=float))
@@ -131,6 +131,57 @@ def audit_side_by_side(out: Path, stream) -> str:
                  + ", ".join(f"{c} {100 * f:.0f} %" for c, f in lim.items()) + "\n") if lim else ""
     return ("\nAudit on held-out samples (pamkin audit --quick; full: pamkin audit " + str(out) +
             " and pamkin audit thesis):\n" + side_by_side([thesis, res], ["thesis design", "this run"]) + gait_line)
+
+def _audit_inputs_key(options) -> str:
+    """A digest of everything the thesis design's audit reads: the options, pamkin's source and robot data
+    files (contents), the walking trial and the bone-mesh files (name, size, modification time)."""
+    import hashlib  # noqa: PLC0415
+
+    import pamkin  # noqa: PLC0415
+
+    from .._resources import PACKAGE_DIR, ROBOT_DIR, SHARED_DIR  # noqa: PLC0415
+    from ..bones import find_geometry_dir  # noqa: PLC0415
+
+    h = hashlib.sha256(repr(options).encode())
+    for f in sorted(PACKAGE_DIR.rglob("*.py")) + sorted((ROBOT_DIR / "data").glob("*.yaml")):
+        h.update(str(f.relative_to(f.parents[1])).encode())
+        h.update(f.read_bytes())
+    files = [Path(options.gait_ik)] if options.gait_ik else []
+    try:
+        files += sorted(find_geometry_dir(pamkin.gait2392(), options.geometry_dir).glob("*"))
+    except Exception:  # noqa: BLE001  (no meshes: the audit itself says so)
+        files.append(SHARED_DIR)
+    for f in files:
+        st = f.stat() if f.exists() else None
+        h.update(f"{f}:{st.st_size if st else -1}:{st.st_mtime_ns if st else -1}".encode())
+    return h.hexdigest()[:24]
+
+
+def thesis_quick_audit():
+    """``pamkin audit --quick`` of the thesis design, kept in the cache folder (``$PAMKIN_CACHE``) under a
+    digest of its inputs (:func:`_audit_inputs_key`): the thesis design is fixed, so every run after the
+    first reuses it (~7 s); any change of code, data or options computes it again."""
+    import pickle  # noqa: PLC0415
+
+    from .._resources import cache_dir  # noqa: PLC0415
+    from ..audit import AuditOptions, audit_design  # noqa: PLC0415
+    from ..urdf_build import atomic_write  # noqa: PLC0415
+
+    options = AuditOptions.quick()
+    path = cache_dir() / "audit" / f"thesis_quick_{_audit_inputs_key(options)}.pickle"
+    if path.exists():
+        try:
+            with open(path, "rb") as f:
+                return pickle.load(f)
+        except Exception:  # noqa: BLE001  (a damaged entry: computed again below)
+            pass
+    res = audit_design("thesis", options=options)
+    try:
+        atomic_write(path, pickle.dumps(res))
+    except OSError:       # a read-only cache folder: the result stands
+        pass
+    return res
+
 
 LEGEND = """\
 Columns: id = actuator; PAM = its name; d x n = Festo diameter [mm] x PAMs in parallel; rest = resting
