@@ -132,21 +132,24 @@ def audit_side_by_side(out: Path, stream) -> str:
     return ("\nAudit on held-out samples (pamkin audit --quick; full: pamkin audit " + str(out) +
             " and pamkin audit thesis):\n" + side_by_side([thesis, res], ["thesis design", "this run"]) + gait_line)
 
+
 def _audit_inputs_key(options) -> str:
     """A digest of everything the thesis design's audit reads: the options, pamkin's source and robot data
-    files (contents), the walking trial and the bone-mesh files (name, size, modification time)."""
+    files (contents), the built-in URDFs, the walking-trial folder (IK angles, inverse-dynamics moments)
+    and the bone-mesh files (name, size, modification time)."""
     import hashlib  # noqa: PLC0415
 
     import pamkin  # noqa: PLC0415
 
-    from .._resources import PACKAGE_DIR, ROBOT_DIR, SHARED_DIR  # noqa: PLC0415
+    from .._resources import PACKAGE_DIR, ROBOT_DIR, SHARED_DIR, URDF_DIR  # noqa: PLC0415
     from ..bones import find_geometry_dir  # noqa: PLC0415
 
     h = hashlib.sha256(repr(options).encode())
     for f in sorted(PACKAGE_DIR.rglob("*.py")) + sorted((ROBOT_DIR / "data").glob("*.yaml")):
         h.update(str(f.relative_to(f.parents[1])).encode())
         h.update(f.read_bytes())
-    files = [Path(options.gait_ik)] if options.gait_ik else []
+    files = sorted(URDF_DIR.glob("*.urdf"))
+    files += sorted(Path(options.gait_ik).parent.glob("*")) if options.gait_ik else []
     try:
         files += sorted(find_geometry_dir(pamkin.gait2392(), options.geometry_dir).glob("*"))
     except Exception:  # noqa: BLE001  (no meshes: the audit itself says so)
