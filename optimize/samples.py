@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from pamkin._resources import data_file
 from pamkin.design import Pam
@@ -23,6 +22,7 @@ from pamkin.paths import PathSet
 from pamkin.rom import RangeOfMotion
 
 from .config import RunConfig
+from pamkin.yamlio import safe_load
 
 CAPSULES_FILE = data_file("bone_capsules.yaml")
 #: Interior points of each route segment checked against the bone capsules (segment parameter).
@@ -46,7 +46,7 @@ class Capsule:
 
 def load_capsules(side: str = "r", path: Path = CAPSULES_FILE) -> list[Capsule]:
     """Bone-shaft capsules of one side (the left is the mirror image)."""
-    data = yaml.safe_load(Path(path).read_text())["capsules"]
+    data = safe_load(Path(path).read_text())["capsules"]
     out = []
     for name, c in data.items():
         a, b = np.array(c["a"], float), np.array(c["b"], float)

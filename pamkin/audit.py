@@ -54,6 +54,7 @@ from .osim import ConditionalPathPoint, MovingPathPoint, PathPoint
 from .paths import PathSet
 from .robot import PamRobot, robot_skeleton
 from .rom import RangeOfMotion, load_rom
+from .yamlio import safe_load
 
 #: Random stream of the audit's poses (``SeedSequence(seed, spawn_key=(AUDIT_STREAM,))``); an
 #: optimiser drawing random poses must use another stream (see :func:`random_poses`).
@@ -113,7 +114,7 @@ def load_limits(path: str | os.PathLike | None = None) -> dict:
     """
     def read(p: Path) -> dict:
         try:
-            data = yaml.safe_load(p.read_text())
+            data = safe_load(p.read_text())
         except FileNotFoundError:
             raise DataFileError(str(p), "file not found") from None
         except (OSError, yaml.YAMLError) as e:

@@ -48,6 +48,7 @@ from .osim import (
     point_from_dict,
 )
 from .urdf_build import ROBOT_DIR, atomic_write
+from .yamlio import safe_load
 
 #: The thesis robot's 27 PAMs as designed by hand (sized by the thesis algorithm): the baseline.
 THESIS_DESIGN = ROBOT_DIR / "data" / "thesis_design.yaml"
@@ -262,7 +263,7 @@ def load_design(path: str | os.PathLike = ROBOT_DESIGN, bodies: list[str] | None
     """
     path = resolve_design_path(path)
     try:
-        data = yaml.safe_load(path.read_text())
+        data = safe_load(path.read_text())
     except FileNotFoundError:
         raise _fail(str(path), "file not found") from None
     except yaml.YAMLError as e:

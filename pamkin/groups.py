@@ -13,6 +13,7 @@ import yaml
 
 from ._resources import data_file
 from .errors import DataFileError
+from .yamlio import safe_load
 
 GROUPS_FILE = data_file("muscle_groups.yaml")
 
@@ -54,7 +55,7 @@ def load_groups(path: str | Path = GROUPS_FILE, sides: tuple[str, ...] = ("r", "
     """Every thesis group and actuator group for the given sides."""
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text())
+        data = safe_load(path.read_text())
         out = []
         for side in sides:
             for g, members in data["thesis_groups"].items():

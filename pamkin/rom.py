@@ -20,6 +20,7 @@ import yaml
 
 from ._resources import data_file
 from .errors import ConfigurationError, DataFileError
+from .yamlio import safe_load
 
 ROM_FILE = data_file("rom.yaml")
 
@@ -176,7 +177,7 @@ def load_rom(name: str = "robot_thesis", side: str = "r", path: str | Path = ROM
     """
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text())
+        data = safe_load(path.read_text())
     except (OSError, yaml.YAMLError) as e:
         raise DataFileError(str(path), f"cannot read: {e}") from None
     if name not in data:

@@ -23,6 +23,7 @@ from ._resources import MESH_DIR, ROBOT_DIR, URDF_DIR, cache_dir
 from .errors import BuildError, DataFileError
 from .functions import LinearFunction
 from .osim import Coordinate, Joint, OsimModel, TransformAxis, load_osim_file, model_from_dict, model_to_dict
+from .yamlio import safe_load
 
 # ROBOT_DIR (Xacro sources and project data files) and URDF_DIR (generated URDFs) come from
 # pamkin._resources: inside the installed package, or the checkout's robot/ and urdf/.
@@ -131,7 +132,7 @@ def load_model_data(path: str | os.PathLike) -> OsimModel:
     """Read a model data file written by :func:`write_model_data` back into an :class:`OsimModel`."""
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text())
+        data = safe_load(path.read_text())
         return model_from_dict(data["model"], path=str(path))
     except FileNotFoundError:
         raise DataFileError(str(path), "file not found") from None
