@@ -33,7 +33,7 @@ import numpy as np
 
 from pamkin import festo
 from pamkin.design import Pam
-from pamkin.audit import body_room, segment_names
+from pamkin.pam_body import body_room, segment_names
 from pamkin.errors import RangeWarning
 from pamkin.paths import PathSet
 

@@ -4,7 +4,7 @@ PAM–PAM clearance pass.
 A PAM body is the part of its route from the start of its mount segment (the segment that best holds
 the PAM with both fittings) for the PAM length plus both fittings, with Festo's assumed outer diameter
 (:func:`pamkin.festo.outer_diameter`) — exactly what ``pamkin audit`` tests
-(:func:`pamkin.audit._pam_capsules`, :func:`pamkin.audit._mount`, :func:`pamkin.audit.body_room`).
+(:func:`pamkin.pam_body.pam_capsules`, :func:`pamkin.pam_body.mount_segment`, :func:`pamkin.pam_body.body_room`).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ class Body:
 
 def pam_bodies(design, model, q: np.ndarray) -> list[Body]:
     """The right-side PAM bodies of every actuator of ``design`` at poses ``q`` (S, n_coordinates)."""
-    from pamkin.audit import _mount, _pam_capsules, _route_positions, body_room
+    from pamkin.pam_body import body_room, mount_segment, pam_capsules, route_positions
     from pamkin.robot import PamRobot
 
     right = PamRobot(design, model, sides=("r",))
@@ -41,11 +41,11 @@ def pam_bodies(design, model, q: np.ndarray) -> list[Body]:
     fit = 2 * design.fitting_length_m
     out = []
     for k, pam in enumerate(design.pams):
-        pts = _route_positions(right.paths, ks, k)
+        pts = route_positions(right.paths, ks, k)
         seg_len = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=2)
         pam_len = st.pam_lengths[:, k]
-        j, _ = _mount(body_room(seg_len, pam.resting_length_m, pam_len, design.fitting_length_m))
-        pieces = _pam_capsules(pts[:, j:], 0, pam_len + fit)
+        j, _ = mount_segment(body_room(seg_len, pam.resting_length_m, pam_len, design.fitting_length_m))
+        pieces = pam_capsules(pts[:, j:], 0, pam_len + fit)
         out.append(Body(pam.id, pieces, festo.outer_diameter(pam.diameter_mm) / 2, j))
     return out
 

@@ -283,7 +283,7 @@ class ActuatorProblem:
         """The PAM on route segment ``segment`` at every constraint sample, as two (S_c, 1) CasADi rows
         ≥ 0: the segment holds the resting PAM, and the actual (possibly stretched) PAM, with both fittings
         and :data:`SEGMENT_MARGIN` (the tendon takes the rest of the route). The audit's measure is
-        :func:`pamkin.audit.body_room`."""
+        :func:`pamkin.pam_body.body_room`."""
         ci = [int(s) for s in self.data.constraint_idx]
         seg = _norm_rows(self.X[segment + 1] - self.X[segment])[0, ci]
         rest = (seg - (self.l0 + 2 * self.data.fitting_length + SEGMENT_MARGIN)).T

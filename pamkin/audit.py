@@ -51,6 +51,7 @@ from .design import Design, load_design
 from .errors import ConfigurationError, DataFileError, RangeWarning
 from .model import Model
 from .osim import ConditionalPathPoint, MovingPathPoint, PathPoint
+from .pam_body import body_room, mount_segment, pam_capsules, route_positions, segment_names
 from .paths import PathSet
 from .robot import PamRobot, robot_skeleton
 from .rom import RangeOfMotion, load_rom
@@ -242,66 +243,6 @@ class AuditResult:
 
 
 # ----------------------------------------------------------------------------- geometry helpers
-def _route_positions(paths: PathSet, state, k: int) -> np.ndarray:
-    """(S, P, 3) world positions of route ``k``'s points; an absent conditional point is put on the
-    point before it, so that segment i–(i+1) is always the straight piece between present points."""
-    X, _ = paths.point_positions(state)
-    a, b = paths._path_start[k], paths._path_end[k]
-    pts = X[:, a:b].copy()
-    if len(paths._cond_ids):
-        v = state.q[:, paths._cond_coord]
-        present = (v >= paths._cond_lo) & (v <= paths._cond_hi)
-        for j, pid in enumerate(paths._cond_ids):
-            if a <= pid < b:
-                i = pid - a
-                pts[~present[:, j], i] = pts[~present[:, j], i - 1]
-    return pts
-
-
-def segment_names(pam) -> list[str]:
-    """``"p1->p2"``-style names of a route's segments."""
-    return [f"{p.name}->{q.name}" for p, q in zip(pam.points[:-1], pam.points[1:])]
-
-
-def body_room(seg_len: np.ndarray, resting_length: float, pam_len: np.ndarray, fitting_length: float) -> np.ndarray:
-    """Room [m] left on route segments of lengths ``seg_len`` (S, …) by the PAM body — its resting length
-    or its actual length ``pam_len`` (S,), whichever is longer, plus both fittings (negative: the PAM does
-    not fit there and would bend over the segment's end)."""
-    need = np.maximum(resting_length, pam_len) + 2 * fitting_length
-    return seg_len - need.reshape(need.shape + (1,) * (np.ndim(seg_len) - 1))
-
-
-def _mount(room: np.ndarray) -> tuple[int, float]:
-    """Segment that best holds the PAM: max over segments of min over samples of :func:`body_room`."""
-    margin = room.min(axis=0)
-    j = int(np.argmax(margin))
-    return j, float(margin[j])
-
-
-def _pam_capsules(pts: np.ndarray, j0: int, length: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """The PAM body along the route from the start of segment ``j0`` for ``length`` (S,) [m]:
-    one (A, B, valid) per segment it covers (A, B (S, 3); valid (S,) where the piece exists)."""
-    seg = pts[:, 1:] - pts[:, :-1]
-    L = np.linalg.norm(seg, axis=2)
-    out = []
-    s = np.zeros(len(pts))
-    for j in range(j0, seg.shape[1]):
-        lo = s
-        hi = s + L[:, j]
-        ta = np.zeros(len(pts))
-        end = np.minimum(length, hi)
-        valid = end > lo + 1e-12
-        with np.errstate(invalid="ignore", divide="ignore"):
-            tb = np.where(L[:, j] > 1e-12, np.clip((end - lo) / L[:, j], 0, 1), 0.0)
-        A = pts[:, j] + ta[:, None] * seg[:, j]
-        B = pts[:, j] + tb[:, None] * seg[:, j]
-        out.append((A, B, valid))
-        s = hi
-        if np.all(s >= length):
-            break
-    return out
-
-
 # ----------------------------------------------------------------------------- the audit
 def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x)))) if x.size else float("nan")
@@ -423,10 +364,10 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
         ks_all = skel.kinematics.forward(q_all, warn_range=False)
     mounts = []
     for k, (pam, row) in enumerate(zip(des.pams, rows)):
-        pts = _route_positions(right.paths, ks_all, k)
+        pts = route_positions(right.paths, ks_all, k)
         seg_len = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=2)
         pam_len = st_all.pam_lengths[:, k]
-        j, margin = _mount(body_room(seg_len, pam.resting_length_m, pam_len, des.fitting_length_m))
+        j, margin = mount_segment(body_room(seg_len, pam.resting_length_m, pam_len, des.fitting_length_m))
         seg_names = segment_names(pam)
         mounts.append(j)
         row["tendon_ok"] = bool(pam.tendon_length_m >= 0)
@@ -646,7 +587,7 @@ def _bone_checks(right: PamRobot, bones, sets: list, rows: list[dict], step: flo
         d_pt[better] = dm[better]
         b_pt[better] = near[s, np.arange(n_all)][better]
         starts, ends, ts = [], [], []
-        route_pts = [_route_positions(right.paths, state, k) for k in range(len(des.pams))]
+        route_pts = [route_positions(right.paths, state, k) for k in range(len(des.pams))]
         seg_of, seg_t = [], []
         for si, (k, j) in enumerate(seg_keys):
             A, B = route_pts[k][:, j], route_pts[k][:, j + 1]
@@ -731,10 +672,10 @@ def _clearance(robot: PamRobot, des: Design, kin_state: dict, pam_state: dict, m
         caps[key] = {}
         for c in cols:
             k = c % n
-            pts = _route_positions(robot.paths, st, c)
+            pts = route_positions(robot.paths, st, c)
             length = ps.pam_lengths[:, c] + fit
             # the PAM body starts at its mount segment
-            caps[key][c] = _pam_capsules(pts[:, mounts[k]:], 0, length)
+            caps[key][c] = pam_capsules(pts[:, mounts[k]:], 0, length)
 
     def closest(ca: list, cb: list, ra: float, rb: float) -> tuple[float, int]:
         best, arg = np.inf, -1

@@ -769,7 +769,7 @@ def test_mount_stage_puts_the_pam_on_one_segment_of_the_fixed_route():
     on that segment at 201 poses of the range (pamkin.robot, not the optimiser's rows), its strain stays
     within its limits; with mount_cost 0 the same (costlier) result is refused and named."""
     from pamkin import festo
-    from pamkin.audit import segment_names
+    from pamkin.pam_body import segment_names
     from pamkin.optimize.mount import mount_stage
 
     rom = RangeOfMotion({"angle": (-0.4, 0.4)})
