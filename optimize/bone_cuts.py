@@ -424,7 +424,9 @@ def stage_key(m: Measure, sol) -> tuple:
     return (_violation_key(m), round(m.pam_overlap(), 4), float(sol.objective))
 
 
-def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start: bool = False):
+def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start: bool = False,
+               trust: float = TRUST_START, trust_max: float = TRUST_MAX, extra_rounds: int | None = None,
+               give_up=None):
     """Move a solved route clear of bone, and of the obstacle PAM bodies if :meth:`BoneCuts.set_obstacles`
     gave any (sequential linearisation with a trust region).
 
@@ -445,6 +447,12 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start:
         keep_start: ``sol`` is itself a candidate (a warm start: a route already through these rounds in
             an earlier run): a round must lower the merit of ``sol`` to be accepted, and the result is
             ``sol`` unless a round beats it.
+        trust: The first round's trust region (half-width per point coordinate) [m].
+        trust_max: The largest trust region [m].
+        extra_rounds: Rounds beyond ``rounds`` for a clear route still gaining (default
+            :data:`EXTRA_CLEAR_ROUNDS`).
+        give_up: Optional ``(previous, accepted) -> bool`` called after every accepted round after the
+            first: True ends the rounds (a caller's target out of reach at the current pace).
 
     Returns:
         ``(solution, measure, rounds_info)``: the best accepted round — fewest bone violations
@@ -466,9 +474,11 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start:
     if keep_start and sol.success:   # ... unless the start is a candidate itself
         merit = sol.objective + MERIT_PENALTY * m0.violation(PAM_WEIGHT)
         merit_violation = m0.violation()
-    rho = TRUST_START
+    rho = trust
     gaining = False                  # the last round was accepted, clear of bone, and gained >= STOP_GAIN
-    for r in range(rounds + EXTRA_CLEAR_ROUNDS):
+    extra = EXTRA_CLEAR_ROUNDS if extra_rounds is None else extra_rounds
+    previous = None                  # the last accepted round
+    for r in range(rounds + extra):
         if r >= rounds and not gaining:
             break
         _, (W, w0) = cuts.measure(z[:3 * npt].reshape(npt, 3), with_rows=True)
@@ -497,9 +507,12 @@ def bone_stage(prob, sol, cuts: BoneCuts, rounds: int = 8, log=None, keep_start:
             step = float(np.max(np.abs(s.z[:3 * npt] - zc)))
             gain = (merit - m_new) / max(abs(merit), 1e-12) if np.isfinite(merit) else np.inf
             z, merit, merit_violation = s.z.copy(), m_new, ms.violation()
-            rho = min(TRUST_MAX, 1.5 * rho) if step > 0.5 * rho else rho
+            rho = min(trust_max, 1.5 * rho) if step > 0.5 * rho else rho
             if merit_violation == 0.0 and (step < 1e-4 or gain < STOP_GAIN):
                 break                # clear of bone, and the fit no longer improves
+            if give_up is not None and previous is not None and give_up(previous, s):
+                break
+            previous = s
             gaining = merit_violation == 0.0
         else:
             gaining = False

@@ -71,6 +71,18 @@ def reach_bound(L: np.ndarray, seg_min: float, diameter: int, cfg, fitting: floa
     return float((np.max(L) - np.min(L)) / (c + s)), float(most)
 
 
+def mounted_segment(prob, z: np.ndarray, tol: float = 1e-6) -> int | None:
+    """The route segment that holds the PAM of decision vector ``z`` at every constraint sample of ``prob``
+    (:meth:`optimize.problem.ActuatorProblem.one_segment_rows`; the one with the most room), or None."""
+    best, room = None, -tol
+    for j in range(len(prob.X) - 1):
+        rows = ca.vertcat(*prob.one_segment_rows(j))
+        r = float(np.min(np.array(ca.Function("rows", [prob.z], [rows])(z))))
+        if r >= room:
+            best, room = j, r
+    return best
+
+
 class _MountSolver:
     """The actuator's problem over (l0, t) with the route fixed at ``z_route`` (the points' values put into
     its expressions: a two-variable NLP, cheap to build) and the PAM on one segment."""
@@ -136,7 +148,7 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
                   "tendon_before_m": float(max(best.tendon_length, 0.0))}
     order = list(np.argsort(-seg_min))[:N_SEGMENTS]
     need, most = reach_bound(L, float(seg_min[order[0]]), prob.d, cfg, f)
-    info.update(least_rest_m=need, segment_holds_m=most, excursion_m=float(np.ptp(L)))
+    info.update(least_rest_m=need, segment_holds_m=most, excursion_m=float(np.ptp(L)), segment_index=int(order[0]))
     if need > most:
         info.update(reason="out of reach", segment=names[order[0]],
                     line=f"cannot sit on one straight segment: its excursion {1e3 * np.ptp(L):.0f} mm needs a "
@@ -192,7 +204,7 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
         return best, info
     sol, j = found
     cost = float(np.sqrt(max(sol.objective, 0.0)) - np.sqrt(max(j_before, 0.0)))
-    info.update(segment=names[j], objective_after=float(sol.objective), rest_after_m=float(sol.rest_length),
+    info.update(segment=names[j], segment_index=j, objective_after=float(sol.objective), rest_after_m=float(sol.rest_length),
                 tendon_after_m=float(max(sol.tendon_length, 0.0)), cost=cost)
     if cost > cfg.mount_cost:
         info.update(reason="fit cost",
@@ -206,3 +218,119 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
                      f"{max(sol.tendon_length, 0.0):.3f} m, objective {j_before:.4g} -> {sol.objective:.4g}")
     return sol, info
 
+
+
+#: Mount rounds (:func:`mount_rounds`) are tried where the fixed route's mount failed on fit cost by at most
+#: this multiple of ``mount_cost``, or was out of reach by at most :data:`ROUNDS_REACH` (least resting length
+#: ÷ what the segment holds). The others are not tried: measured on the default run (stop 24), none of the
+#: six "infeasible" PAMs passed with their points free (root cost +0.10 to +1.75), and the PAMs further out of
+#: reach need 31-83 % more segment than they have.
+ROUNDS_COST_FACTOR = 2.0
+ROUNDS_REACH = 1.08
+#: Bone rounds of a mount try, and their first trust region [m] (smaller than the bone stage's: the route is
+#: already clear of bone; a 20 mm first step cost the flexor digitorum longus two 10 s solves at the CPU cap).
+ROUNDS = 5
+ROUNDS_TRUST = 0.005
+#: Their largest trust region [m] (rounds at the bone stage's 30 mm failed at the CPU cap: 15 s each).
+ROUNDS_TRUST_MAX = 0.015
+#: The rounds give up when the fit cost left above ``mount_cost`` (in the objective's root) is more than this
+#: many times what the last round gained.
+ROUNDS_PACE = 2.0
+
+
+def mount_rounds(prob, best, info: dict, pam: Pam, cfg, cuts, model, rom, solution_pam):
+    """The PAM on one straight segment with its route free: bone rounds with the one-segment rows.
+
+    Where :func:`mount_stage` could not mount the PAM on its fixed route at a small enough cost (``info``;
+    see :data:`ROUNDS_COST_FACTOR`, :data:`ROUNDS_REACH`), the bone-mesh rounds
+    (:func:`optimize.bone_cuts.bone_stage`, the actuator's bone-check poses ``cuts``) run once more from the
+    solved route on the same problem with the PAM on that segment at every constraint sample
+    (:meth:`optimize.problem.ActuatorProblem.with_mount`): the points may move (lengthening the segment,
+    reshaping the moment arms) within their bone rows and brackets. The result replaces ``best`` when it is
+    feasible, no deeper into bone (and no point inside its bone), keeps the strain and force limits and the
+    segment on the held-out limit-check poses, and the root of the fit objective grows by at most
+    ``cfg.mount_cost`` over ``best``'s.
+
+    Returns:
+        ``(solution, problem, info)``: the mounted solution and its problem, or ``best``, ``prob`` and
+        ``info`` with a note of the try (``rounds``: what was tried and why it was not kept).
+    """
+    reason = info.get("reason")
+    j = info.get("segment_index")
+    if j is None or not best.success:
+        return best, prob, info
+    if reason == "fit cost":
+        if info["cost"] > ROUNDS_COST_FACTOR * cfg.mount_cost:
+            return best, prob, info
+    elif reason == "out of reach":
+        if info["least_rest_m"] > ROUNDS_REACH * info["segment_holds_m"]:
+            return best, prob, info
+    else:
+        return best, prob, info
+    from .bone_cuts import bone_stage  # noqa: PLC0415
+
+    t0 = time.perf_counter()
+    names = segment_names(pam)
+    f = prob.data.fitting_length
+    p1 = prob.with_mount(int(j))
+    start = p1.evaluate(best.z, best.n_parallel)
+    m0 = cuts.measure(np.array(best.points))
+    q_check = check_poses(model, rom, prob.data.crossed or [pam.primary_coordinate], cfg.seed, pam.id)
+    seg_rows = np.array([fam.startswith("PAM fits on segment") for fam in p1.family])
+    limits = (p1.lbg.copy(), p1.ubg.copy())
+    log: list[str] = []
+    sol, cost, why = start, np.inf, "no feasible round"
+    target = np.sqrt(max(best.objective, 0.0)) + cfg.mount_cost       # the root objective to reach
+
+    def slow(previous, accepted) -> bool:
+        left = np.sqrt(max(accepted.objective, 0.0)) - target
+        gained = np.sqrt(max(previous.objective, 0.0)) - np.sqrt(max(accepted.objective, 0.0))
+        if left > ROUNDS_PACE * max(gained, 0.0):
+            log.append(f"  given up: root objective {left:.3f} above the mount cost's, the last round gained {gained:.3f}")
+            return True
+        return False
+
+    try:
+        for _ in range(2):      # the rounds; where the held-out poses miss a limit, tightened once and again
+            sol, m, _ = bone_stage(p1, sol, cuts, ROUNDS, log, trust=ROUNDS_TRUST, trust_max=ROUNDS_TRUST_MAX,
+                                   extra_rounds=0, give_up=slow)
+            if not sol.success or sol is start:
+                why = "no feasible round"
+                break
+            if m.violation() > m0.violation() + 1e-9 or np.nanmin(m.point_distance, initial=np.inf) < 0:
+                why = f"deeper into bone ({1e3 * m.violation():.2f} mm, before {1e3 * m0.violation():.2f} mm)"
+                break
+            cost = float(np.sqrt(max(sol.objective, 0.0)) - np.sqrt(max(best.objective, 0.0)))
+            if cost > cfg.mount_cost:
+                why = (f"fit cost: objective {best.objective:.4g} -> {sol.objective:.4g} "
+                       f"(root +{cost:.3f} > mount_cost {cfg.mount_cost:g})")
+                break
+            cand = solution_pam(pam, p1.finalize(sol))
+            excess = limit_excess(cand, model, q_check, cfg, f)
+            margin = held_out_margin(cand, model, q_check, int(j), f)
+            if not excess and margin >= 0:
+                why = ""
+                break
+            why = "held-out poses: " + "; ".join([f"{k} exceeded by {v:.3g}" for k, v in excess.items()]
+                                                 + ([f"PAM off its segment by {1e3 * -margin:.1f} mm"] if margin < 0 else []))
+            tighten(p1, excess)
+            if margin < 0:
+                p1.lbg[seg_rows] += -margin + EXTRA * 0.1
+    finally:
+        p1.lbg, p1.ubg = limits
+    moved = float(np.max(np.abs(np.asarray(sol.points) - np.asarray(best.points)))) if sol.success else 0.0
+    out = dict(info)
+    rounds = {"segment": names[j], "seconds": round(time.perf_counter() - t0, 2), "log": log,
+              "objective_after": float(sol.objective), "kept": not why, "why_not": why}
+    out["rounds"] = rounds
+    if why:
+        out["line"] = info["line"] + f"; with its points free (bone rounds on {names[j]}): not kept, {why}"
+        return best, prob, out
+    out.update(mounted=True, reason="", segment=names[j], objective_after=float(sol.objective),
+               rest_after_m=float(sol.rest_length), tendon_after_m=float(max(sol.tendon_length, 0.0)), cost=cost,
+               line=f"on one straight segment {names[j]} with its points moved (bone rounds with the PAM on it, "
+                    f"points up to {1e3 * moved:.1f} mm): resting length {best.rest_length:.3f} -> "
+                    f"{sol.rest_length:.3f} m, tendon {max(best.tendon_length, 0.0):.3f} -> "
+                    f"{max(sol.tendon_length, 0.0):.3f} m, objective {best.objective:.4g} -> {sol.objective:.4g} "
+                    f"(was {reason}: {info['line']})")
+    return sol, p1, out

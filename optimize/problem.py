@@ -91,7 +91,7 @@ class ActuatorProblem:
 
     def __init__(self, data: ActuatorData, cfg: RunConfig, diameter: int,
                  seed_points: list[np.ndarray], regions: list[list[float]], relax: frozenset = frozenset(),
-                 bracket: dict | None = None) -> None:
+                 bracket: dict | None = None, mount_segment: int | None = None) -> None:
         self.data, self.cfg, self.d = data, cfg, diameter
         self.relax = relax           # constraint groups left out ("one_segment"): the run reports them
         self.mount: int | None = None  # the segment the PAM sits on (one_segment)
@@ -182,19 +182,18 @@ class ActuatorProblem:
                     lbg += [-np.inf] * Gi.shape[0]
                     ubg += [1.0] * Gi.shape[0]
                     fam += [f"1 mm error of point {i + 1} <= sensitivity limit"] * Gi.shape[0]
-        if cfg.one_segment_for(data.pam.id) and "one_segment" not in relax and len(X) > 2:
-            # the PAM sits on the route's longest segment (at the seed): that segment holds the resting
-            # PAM and the actual (possibly stretched) PAM with both fittings; the tendon takes the rest
+        if (mount_segment is not None or cfg.one_segment_for(data.pam.id)) and "one_segment" not in relax:
+            # the PAM sits on segment ``mount_segment``, else on the route's longest segment (at the seed):
+            # that segment holds the resting PAM and the actual (possibly stretched) PAM with both fittings;
+            # the tendon takes the rest
             seed_len = [float(np.mean(np.linalg.norm(self._seed_world(a + 1) - self._seed_world(a), axis=1)))
                         for a in range(len(X) - 1)]
-            self.mount = int(np.argmax(seed_len))
+            self.mount = int(np.argmax(seed_len)) if mount_segment is None else int(mount_segment)
             rest_row, actual_row = self.one_segment_rows(self.mount)
             g.append(rest_row); lbg += [0.0] * len(ci); ubg += [np.inf] * len(ci)
             fam += [f"PAM fits on segment {self.mount + 1}-{self.mount + 2} (resting)"] * len(ci)
             g.append(actual_row); lbg += [0.0] * len(ci); ubg += [np.inf] * len(ci)
             fam += [f"PAM fits on segment {self.mount + 1}-{self.mount + 2} (actual)"] * len(ci)
-        elif len(X) == 2:
-            self.mount = 0
         if cfg.min_point_distance_m > 0:
             for a, b in zip(range(len(X) - 1), range(1, len(X))):
                 same = (a not in self.moving and b not in self.moving
@@ -278,6 +277,12 @@ class ActuatorProblem:
             lbx += [lmin, 0.0]
             ubx += [lmax, 5.0]
         self.lbx, self.ubx = np.array(lbx), np.array(ubx)
+
+    def with_mount(self, segment: int) -> ActuatorProblem:
+        """The same problem (data, diameter, route box, relaxed groups, brackets) with the PAM on route
+        segment ``segment`` at every constraint sample (the one-segment rows)."""
+        return ActuatorProblem(self.data, self.cfg, self.d, self.seed, self.regions,
+                               self.relax - {"one_segment"}, self.bracket or None, mount_segment=segment)
 
     def one_segment_rows(self, segment: int):
         """The PAM on route segment ``segment`` at every constraint sample, as two (S_c, 1) CasADi rows

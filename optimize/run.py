@@ -104,14 +104,19 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         return sol.objective + cfg.weight_mass * 2 * sol.n_parallel * float(festo.pam_mass(sol.rest_length,
                                                                                            sol.diameter_mm))
 
-    def attempt(d: int, n: int, points, rest, tendon, label: str, relax=frozenset(), evaluate: bool = False):
+    def problem(d: int, relax=frozenset(), mount: int | None = None):
+        if (d, relax, mount) not in problems:
+            problems[(d, relax, mount)] = ActuatorProblem(data, cfg, d, seed, regions, relax,
+                                                          _bracket(pam, seed, regions, cfg), mount)
+        return problems[(d, relax, mount)]
+
+    def attempt(d: int, n: int, points, rest, tendon, label: str, relax=frozenset(), evaluate: bool = False,
+                mount: int | None = None):
         nonlocal best
-        if (d, relax) not in problems:
-            problems[(d, relax)] = ActuatorProblem(data, cfg, d, seed, regions, relax,
-                                                   _bracket(pam, seed, regions, cfg))
-        prob = problems[(d, relax)]
+        prob = problem(d, relax, mount)
         z0 = prob.initial_guess(points, rest, tendon)
         sol = prob.evaluate(z0, n) if evaluate else prob.solve(z0, n)
+        sol.mount_segment = mount       # the phase after the unit budget solves the same problem
         attempts.append({"diameter_mm": d, "n_parallel": n, "start": label, "status": sol.status,
                          "objective": sol.objective, "feasible": sol.success, "seconds": round(sol.seconds, 3),
                          "relaxed": sorted(relax)})
@@ -131,14 +136,21 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     # the bone meshes, a warm route that meets this run's own constraints is taken as it is (it was cleared
     # of bone in its run): the bone-mesh rounds then improve the fit from there, instead of from a fresh
     # fit that the rounds would have to pull out of bone again.
+    # A warm PAM that sits on one straight segment keeps it: its problem has the one-segment rows there.
     warm_ok = False
     if pam.id in _STATE.get("warm_ids", ()) and pam.diameter_mm in cfg.diameters_mm \
             and pam.n_parallel <= cfg.max_parallel:
         warm = (pam.diameter_mm, pam.n_parallel, seed, pam.resting_length_m, pam.tendon_length_m)
+        on = None
+        if cfg.mount and not cfg.one_segment_for(pam.id):
+            from .mount import mounted_segment  # noqa: PLC0415
+
+            p0 = problem(pam.diameter_mm)
+            on = mounted_segment(p0, p0.initial_guess(seed, pam.resting_length_m, pam.tendon_length_m))
         if cfg.bone_mesh:
-            warm_ok = attempt(*warm, "warm start (as given)", evaluate=True).success
+            warm_ok = attempt(*warm, "warm start (as given)", evaluate=True, mount=on).success
         if not warm_ok:
-            warm_ok = attempt(*warm, "warm start").success
+            warm_ok = attempt(*warm, "warm start", mount=on).success
     if not warm_ok:
         same_seed = (pam.diameter_mm, pam.n_parallel)
         results = {}
@@ -174,9 +186,9 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         out = _result(pam, data, best_problem[0], best, attempts, t0, {})
         out.candidates = candidates
         return out
-    best, bone = _bone_rounds(best_problem[0], best, pam, cfg)
-    best, mount = _mount(best_problem[0], best, pam, cfg)
-    return _result(pam, data, best_problem[0], best, attempts, t0, bone, mount)
+    best, bone, cuts = _bone_rounds(best_problem[0], best, pam, cfg)
+    best, prob, mount = _mount(best_problem[0], best, pam, cfg, cuts)
+    return _result(pam, data, prob, best, attempts, t0, bone, mount)
 
 
 #: The bone-mesh rounds start once more from the seed route unless the first result is clear of bone with
@@ -188,10 +200,11 @@ LIMIT_CHECK_ROUNDS = 2
 
 
 def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
-    """The bone-mesh stage of a solved actuator (when ``cfg.bone_mesh``): (solution, bone info). A warm
-    start taken as given (already through these rounds in its run) stays unless a round beats it."""
+    """The bone-mesh stage of a solved actuator (when ``cfg.bone_mesh``): (solution, bone info, its
+    :class:`~optimize.bone_cuts.BoneCuts` or None). A warm start taken as given (already through these rounds
+    in its run) stays unless a round beats it."""
     if not (cfg.bone_mesh and best.success):
-        return best, {}
+        return best, {}, None
     from .bone_cuts import (N_POINT_CHECK, BoneCuts, bone_check_poses, bone_stage,  # noqa: PLC0415
                             point_contact_poses, push_out)
 
@@ -254,7 +267,7 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
         lines.append("  limit check: still exceeded: " + "; ".join(f"{k} by {v:.4g}" for k, v in excess.items()))
     bone = _bone_info(cuts, before, measure, info, lines, [p.name for p in pam.points])
     bone.update(objective_before=float(before.objective), objective_after=float(best.objective))
-    return best, bone
+    return best, bone, cuts
 
 
 def _seed_start(prob, best, measure, info: list, cuts, cfg: RunConfig, lines: list[str]):
@@ -308,7 +321,8 @@ def _finish_choice(task: tuple) -> ActuatorResult:
     seed, regions = _route_box(pam, cfg)
     if key in first.candidates:
         _, sol, relax = first.candidates[key]
-        prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax, _bracket(pam, seed, regions, cfg))
+        prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax, _bracket(pam, seed, regions, cfg),
+                               getattr(sol, "mount_segment", None))
         start = "unit budget choice"
     else:
         relax = frozenset(first.relaxed)
@@ -317,22 +331,26 @@ def _finish_choice(task: tuple) -> ActuatorResult:
         start = "walking check (from the solved route)"
         if not sol.success:
             return _result(pam, data, prob, sol, first.attempts, t0 - first.seconds, {})
-    best, bone = _bone_rounds(prob, sol, pam, cfg)
-    best, mount = _mount(prob, best, pam, cfg)
+    best, bone, cuts = _bone_rounds(prob, sol, pam, cfg)
+    best, prob, mount = _mount(prob, best, pam, cfg, cuts)
     attempts = first.attempts + [{"diameter_mm": key[0], "n_parallel": key[1], "start": start,
                                   "status": sol.status, "objective": sol.objective, "feasible": bool(sol.success),
                                   "seconds": 0.0, "relaxed": sorted(relax)}]
     return _result(pam, data, prob, best, attempts, t0 - first.seconds, bone, mount)
 
 
-def _mount(prob, best, pam: Pam, cfg: RunConfig):
-    """The one-segment stage of a solved actuator (when ``cfg.mount``; :mod:`optimize.mount`):
-    (solution, mount info)."""
+def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None):
+    """The one-segment stage of a solved actuator (when ``cfg.mount``; :mod:`optimize.mount`): on its fixed
+    route, and where that fails narrowly, with the bone rounds (``cuts``) and the PAM on the segment
+    (:func:`optimize.mount.mount_rounds`). Returns (solution, its problem, mount info)."""
     if not (cfg.mount and best.success):
-        return best, {}
-    from .mount import mount_stage  # noqa: PLC0415
+        return best, prob, {}
+    from .mount import mount_rounds, mount_stage  # noqa: PLC0415
 
-    return mount_stage(prob, best, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam)
+    best, info = mount_stage(prob, best, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam)
+    if info.get("mounted") or cuts is None:
+        return best, prob, info
+    return mount_rounds(prob, best, info, pam, cfg, cuts, _STATE["human"], _STATE["rom"], solution_pam)
 
 
 def choose_units(results: list[ActuatorResult], budget: int) -> tuple[list, float]:

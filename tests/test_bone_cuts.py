@@ -323,3 +323,97 @@ def test_point_contact_poses_find_a_point_that_meets_another_bone():
     assert np.all(d < SEGMENT_CLEARANCE), d
     assert len(point_contact_poses(human, bones, rom, Pam(1, "toy", (), "lumbar_extension", (), 40, 1, 0.3, 0.0,
                                                           (crest, top)), seed=0)) == 0
+
+
+
+def _mount_toy(mount_cost: float):
+    """A three-point toy route (two_body.osim; o and v on "base", i on "arm") fitted to 0.6 of its own torque
+    over ±0.4 rad with its points free by 20 mm, blocks 10 mm behind each point, and the bone rounds run:
+    (model, rom, seed, cfg, prob, best, cuts, bones)."""
+    model = pamkin.load_osim(DATA / "two_body.osim")
+    bones = BoneSet.from_meshes(model, {"base": [box((0.005, 0.03, -0.01), (0.02, 0.07, 0.01)),
+                                                 box((0.01, -0.14, -0.01), (0.025, -0.10, 0.01))],
+                                        "arm": [box((0.0, -0.05, -0.01), (0.01, -0.01, 0.01))]})
+    rom = RangeOfMotion({"angle": (-0.4, 0.4)})
+    route = (PathPoint("o", "base", (0.03, 0.05, 0.0)), PathPoint("v", "base", (0.035, -0.12, 0.0)),
+             PathPoint("i", "arm", (0.02, -0.03, 0.0)))
+    seed = Pam(1, "toy", (), "angle", (), 10, 1, 0.3, 0.0, route)
+    seed_robot = PamRobot(Design("seed", (seed,)), model, sides=("r",))
+
+    def target(q):
+        return 0.6 * seed_robot.evaluate(q).torques[:, 0, :]
+
+    cfg = RunConfig(**{**FAST_FIT, "rated_force": True, "bone_mesh": True, "mount_cost": mount_cost},
+                    regularization=0.0, bone_clearance=False, n_primary=21, min_point_distance_m=0.0,
+                    regions={"1": [0.02, 0.02, 0.0]})
+    data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
+    pts = [np.array(p.location) for p in seed.points]
+    prob = ActuatorProblem(data, cfg, 10, pts, [np.array(cfg.region(1, p.name)) for p in seed.points])
+    sol = prob.solve(prob.initial_guess(pts, None, None), 1)
+    q_check, _ = model.grid(["angle"], 11, rom=rom)
+    cuts = BoneCuts(seed, model, bones, q_check)
+    best, measure, _ = bone_stage(prob, sol, cuts, rounds=12)
+    assert best.success and measure.violation() == 0.0
+    return model, rom, seed, cfg, prob, best, cuts, bones
+
+
+def test_mount_rounds_put_a_pam_on_its_segment_with_the_points_free():
+    """optimize.mount.mount_rounds: a toy PAM spanning a via point costs fit to mount on its fixed route
+    (reason "fit cost"); with the points free — bone rounds with the one-segment rows — it is mounted at a
+    smaller cost, and measured independently (pamkin.robot on 201 poses, the blocks on a dense grid) it
+    fits on the segment, keeps its strain limits and clears the blocks within its brackets. A mount cost
+    the rounds cannot meet is refused and named; one far below the fixed route's cost is not tried."""
+    import dataclasses
+
+    from pamkin import festo
+    from pamkin.optimize.mount import mount_rounds, mount_stage, mounted_segment
+    from pamkin.optimize.run import solution_pam
+
+    model, rom, seed, cfg, prob, best, cuts, bones = _mount_toy(10.0)
+    assert mounted_segment(prob, best.z) is None          # it spans both segments
+    _, free = mount_stage(prob, best, seed, cfg, model, rom, solution_pam)
+    c1 = free["cost"]                                      # the fixed route's cost of mounting
+    assert free["mounted"] and c1 > 0.005, free
+    cfg_m = dataclasses.replace(cfg, mount_cost=0.999 * c1)
+    kept, info = mount_stage(prob, best, seed, cfg_m, model, rom, solution_pam)
+    assert kept is best and info["reason"] == "fit cost"
+    mounted, p1, out = mount_rounds(prob, best, info, seed, cfg_m, cuts, model, rom, solution_pam)
+    assert out["mounted"] and out["rounds"]["kept"], out
+    j = p1.mount
+    assert p1 is not prob and mounted_segment(p1, mounted.z) == j and out["segment"] == ["o->v", "v->i"][j]
+    assert out["cost"] <= cfg_m.mount_cost and out["cost"] < c1
+    assert np.abs(np.array(mounted.points) - np.array(best.points)).max() > 1e-4      # the points moved
+    assert out["line"].startswith(f"on one straight segment {out['segment']} with its points moved")
+
+    # independent checks: the PAM body on its segment, the strain limits, the blocks and brackets
+    pam = solution_pam(seed, p1.finalize(mounted))
+    q, _ = model.grid(["angle"], 201, rom=rom)
+    robot = PamRobot(Design("m", (pam,)), model, sides=("r",))
+    st = model.kinematics.forward(q)
+    X, _ = robot.paths.point_positions(st)
+    ev = robot.evaluate(q)
+    seg = np.linalg.norm(X[:, j + 1] - X[:, j], axis=1)
+    assert (seg - np.maximum(pam.resting_length_m, ev.pam_lengths[:, 0]) - 2 * 0.0125).min() >= -1e-6
+    eps = ev.strain[:, 0]
+    assert eps.max() <= min(festo.kmax(pam.resting_length_m, 10), festo.max_contraction(10)) + 1e-6
+    assert eps.min() >= -festo.max_pretension(10) - 1e-6
+    t = np.linspace(0, 1, 400)
+    for a in range(2):
+        P = X[:, a:a + 1] + t[None, :, None] * (X[:, a + 1:a + 2] - X[:, a:a + 1])
+        d, _ = bones.signed_distance(st, P, margin=None)
+        assert d.min() >= -0.002
+    own = [bones.body_signed_distance(p.body, np.array([loc]))[0] for p, loc in zip(seed.points, mounted.points)]
+    assert all(0.0 <= x <= POINT_MAX + 1e-4 for x in own), own
+
+    # a mount cost the rounds cannot meet, within the rule's reach: tried, refused and named
+    cfg_x = dataclasses.replace(cfg, mount_cost=0.9 * out["cost"])
+    assert c1 <= 2 * cfg_x.mount_cost
+    _, info_x = mount_stage(prob, best, seed, cfg_x, model, rom, solution_pam)
+    same, p_x, out_x = mount_rounds(prob, best, info_x, seed, cfg_x, cuts, model, rom, solution_pam)
+    assert same is best and p_x is prob and not out_x["mounted"] and not out_x["rounds"]["kept"]
+    assert "not kept, fit cost" in out_x["line"]
+    # far below the fixed route's cost: not tried
+    cfg_y = dataclasses.replace(cfg, mount_cost=0.4 * c1)
+    _, info_y = mount_stage(prob, best, seed, cfg_y, model, rom, solution_pam)
+    same, p_y, out_y = mount_rounds(prob, best, info_y, seed, cfg_y, cuts, model, rom, solution_pam)
+    assert same is best and p_y is prob and "rounds" not in out_y

@@ -798,6 +798,27 @@ def test_mount_stage_puts_the_pam_on_one_segment_of_the_fixed_route():
         assert "mount_cost 0" in refused["line"]
 
 
+def test_a_mounted_pam_is_recognised_and_keeps_its_segment():
+    """optimize.mount.mounted_segment finds the segment that holds a mounted PAM (none for the spanning fit),
+    and a problem built with ``mount_segment`` (a warm start of a mounted PAM) has the one-segment rows
+    there: the mounted solution is feasible for it, the spanning one is not."""
+    from pamkin.pam_body import segment_names
+    from pamkin.optimize.mount import mount_stage, mounted_segment
+
+    rom = RangeOfMotion({"angle": (-0.4, 0.4)})
+    route = (PathPoint("o", "base", (0.03, 0.05, 0.0)), PathPoint("v", "base", (0.035, -0.12, 0.0)),
+             PathPoint("i", "arm", (0.02, -0.03, 0.0)))
+    model, seed, cfg, prob, sol = _toy_spanning_solution(route, rom, 0.6)
+    mounted, info = mount_stage(prob, sol, seed, RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 10.0}),
+                                model, rom, run_mod.solution_pam)
+    j = segment_names(seed).index(info["segment"])
+    assert mounted_segment(prob, sol.z) is None and mounted_segment(prob, mounted.z) == j
+    p1 = ActuatorProblem(prob.data, prob.cfg, 10, prob.seed, prob.regions, mount_segment=j)
+    assert p1.mount == j and any(f.startswith(f"PAM fits on segment {j + 1}-{j + 2}") for f in p1.family)
+    assert p1.evaluate(mounted.z, 1).success and not p1.evaluate(sol.z, 1).success
+    assert prob.with_mount(j).family == p1.family
+
+
 def test_mount_stage_names_a_pam_out_of_reach_with_its_numbers():
     """A route whose excursion needs a longer PAM than its longest segment holds: the stage leaves the
     solution unchanged and reports 'out of reach' with ΔL / (contraction + stretch limit) and the room."""
