@@ -53,8 +53,9 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      gastrocnemii: measured to keep their fit, README)
     mount = true                 # (v2) after the bone rounds, the route fixed: the PAM is put on one straight
     mount_cost = 0.1             #      segment (resting and tendon length re-solved, the tendon over the rest)
-                                 #      where the root of the fit objective grows by at most mount_cost;
-                                 #      elsewhere the run names the PAM and why (optimize.mount)
+                                 #      where the root of the fit objective grows by at most mount_cost; where
+                                 #      it narrowly cannot, bone rounds with the PAM on the segment and the points
+                                 #      free; elsewhere the run names the PAM and why (optimize.mount)
     sensitivity_pct = 9.0        # (v2) a 1 mm error of a fixed attachment point changes the primary torque
                                  # on its 1-D sweep by at most this % of the human peak (audit: 10); 0: off
     bone_mesh = true             # (v2) attachment points on their bone (3..18 mm out), segments clear of the

@@ -21,6 +21,12 @@ the objective grows by at most ``cfg.mount_cost``; otherwise the run names the P
 
 A shorter PAM works over a larger part of its contraction range, where the Festo force falls, so the
 force along the motion changes shape: that, not the geometry, is what mounting costs.
+
+Where the fixed route narrowly fails (fit cost at most :data:`ROUNDS_COST_FACTOR` × ``mount_cost``, or out of
+reach by at most :data:`ROUNDS_REACH`), :func:`mount_rounds` frees the points again: the bone-mesh rounds
+run from the solved route with the PAM on the segment (the one-segment rows), and the result is kept under
+the same rules. A warm start keeps a mounted PAM on its segment (:func:`mounted_segment`; the run then
+builds its problem with the rows there).
 """
 
 from __future__ import annotations
