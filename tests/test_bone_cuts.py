@@ -206,6 +206,19 @@ def test_mesh_rows_keep_a_toy_route_out_of_a_toy_mesh(monkeypatch):
     assert np.abs(np.array(out4.points[0]) - np.array(inside.points[0])).max() <= bc.PUSH_REACH + 1e-7   # IPOPT bound relaxation
 
 
+def _fit_and_clear(model, bones, seed, rom, cfg, target, rounds: int):
+    """Fit the toy actuator ``seed`` (10 mm, one PAM) to ``target`` and run the bone rounds at 11 angles of
+    ``rom``: (problem, fitted solution, cuts, cleared solution, its measure)."""
+    data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
+    pts = [np.array(p.location) for p in seed.points]
+    prob = ActuatorProblem(data, cfg, 10, pts, [np.array(cfg.region(1, p.name)) for p in seed.points])
+    sol = prob.solve(prob.initial_guess(pts, None, None), 1)
+    q_check, _ = model.grid(["angle"], 11, rom=rom)
+    cuts = BoneCuts(seed, model, bones, q_check)
+    best, measure, _ = bone_stage(prob, sol, cuts, rounds=rounds)
+    return prob, sol, cuts, best, measure
+
+
 def test_bone_mesh_config_keys(tmp_path):
     from pamkin.errors import DataFileError
     from pamkin.optimize.config import load_config
@@ -238,13 +251,7 @@ def test_pam_rows_move_a_toy_route_off_another_pam_body():
 
     cfg = RunConfig(**{**FAST_FIT, "bone_mesh": True}, regularization=0.0, bone_clearance=False, n_primary=21,
                     regions={"1": [0.05, 0.05, 0.05]})
-    data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
-    seed_points = [np.array(p.location) for p in seed.points]
-    prob = ActuatorProblem(data, cfg, 10, seed_points, [np.array(cfg.region(1, p.name)) for p in seed.points])
-    sol = prob.solve(prob.initial_guess(seed_points, None, None), 1)
-    q_check, _ = model.grid(["angle"], 11, rom=rom)
-    cuts = BoneCuts(seed, model, bones, q_check)
-    first, m1, _ = bone_stage(prob, sol, cuts, rounds=8)
+    prob, sol, cuts, first, m1 = _fit_and_clear(model, bones, seed, rom, cfg, target, rounds=8)
     assert m1.violation() == 0.0
     X = cuts.world(np.array(first.points))                 # (S, 2, 3): the other body runs 12 mm beside
     other = Body(2, [(X[:, 0] + [0.0, 0.0, 0.012], X[:, 1] + [0.0, 0.0, 0.012], np.ones(len(X), bool))], 0.010, 0)
@@ -346,13 +353,7 @@ def _mount_toy(mount_cost: float):
     cfg = RunConfig(**{**FAST_FIT, "rated_force": True, "bone_mesh": True, "mount_cost": mount_cost},
                     regularization=0.0, bone_clearance=False, n_primary=21, min_point_distance_m=0.0,
                     regions={"1": [0.02, 0.02, 0.0]})
-    data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
-    pts = [np.array(p.location) for p in seed.points]
-    prob = ActuatorProblem(data, cfg, 10, pts, [np.array(cfg.region(1, p.name)) for p in seed.points])
-    sol = prob.solve(prob.initial_guess(pts, None, None), 1)
-    q_check, _ = model.grid(["angle"], 11, rom=rom)
-    cuts = BoneCuts(seed, model, bones, q_check)
-    best, measure, _ = bone_stage(prob, sol, cuts, rounds=12)
+    prob, _, cuts, best, measure = _fit_and_clear(model, bones, seed, rom, cfg, target, rounds=12)
     assert best.success and measure.violation() == 0.0
     return model, rom, seed, cfg, prob, best, cuts, bones
 
