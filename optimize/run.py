@@ -54,10 +54,14 @@ class ActuatorResult:
     # (fit-only first phase of a run with a unit budget) {(diameter, n_parallel): (score, Solution, relaxed)}
     candidates: dict = field(default_factory=dict, repr=False)
     mount: dict = field(default_factory=dict)            # one-segment stage (optimize.mount)
+    skipped: list[str] = field(default_factory=list)     # diameter / count tries left out as dominated
 
 
 # worker state (fork): set before the pool starts
 _STATE: dict = {}
+#: Leave out diameter / parallel-count tries whose mass penalty alone scores more than a feasible try with at
+#: most as many PAMs (they could never be chosen, by the actuator or by the unit budget).
+PRUNE_DOMINATED = True
 
 
 def _route_box(pam: Pam, cfg: RunConfig) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -131,6 +135,20 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
             best_problem[0] = prob
         return sol
 
+    skipped: list[str] = []
+
+    def dominated(d: int, n: int) -> bool:
+        """(d, n) cannot be chosen, here or by the unit budget: its mass penalty alone (objective >= 0, resting
+        length >= Festo's shortest, or the fixed one) scores more than a feasible try with at most n PAMs."""
+        if not PRUNE_DOMINATED:
+            return False
+        rest = pam.resting_length_m if cfg.fix_lengths else festo.nominal_length_range(d)[0]
+        low = cfg.weight_mass * 2 * n * float(festo.pam_mass(rest, d))
+        by = [key for key, (sc, _, _) in candidates.items() if key[1] <= n and sc < low]
+        if by:
+            skipped.append(f"{d} mm x{n} (its mass alone scores {low:.4g}, more than {by[0][0]} mm x{by[0][1]})")
+        return bool(by)
+
     relaxed: frozenset = frozenset()
     # warm start from a run folder: its diameter and count first; the full loop only if that fails. With
     # the bone meshes, a warm route that meets this run's own constraints is taken as it is (it was cleared
@@ -155,6 +173,8 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         same_seed = (pam.diameter_mm, pam.n_parallel)
         results = {}
         for d in cfg.diameters_mm:
+            if dominated(d, 1):
+                continue
             warm = (pam.resting_length_m, pam.tendon_length_m) if (d, 1) == same_seed else (None, None)
             results[(d, 1)] = attempt(d, 1, seed, *warm, "seed")
         optional = [name for name, on in (("one_segment", cfg.one_segment_for(pam.id)),
@@ -172,6 +192,8 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
             d_best = min(feasible, key=lambda key: score(feasible[key]))[0]
             prev = feasible[(d_best, 1)]
             for n in range(2, min(cfg.max_parallel, _STATE.get("n_cap", cfg.max_parallel)) + 1):
+                if dominated(d_best, n):
+                    break
                 s = attempt(d_best, n, prev.points, prev.rest_length, prev.tendon_length, "seed", relaxed)
                 if not (s.success and score(s) < 0.95 * score(prev)):
                     break
@@ -185,10 +207,13 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     if _STATE.get("fit_only"):        # unit budget: the bone-mesh rounds follow the global choice
         out = _result(pam, data, best_problem[0], best, attempts, t0, {})
         out.candidates = candidates
+        out.skipped = skipped
         return out
     best, bone, cuts = _bone_rounds(best_problem[0], best, pam, cfg)
     best, prob, mount = _mount(best_problem[0], best, pam, cfg, cuts)
-    return _result(pam, data, prob, best, attempts, t0, bone, mount)
+    out = _result(pam, data, prob, best, attempts, t0, bone, mount)
+    out.skipped = skipped
+    return out
 
 
 #: The bone-mesh rounds start once more from the seed route unless the first result is clear of bone with
@@ -336,7 +361,9 @@ def _finish_choice(task: tuple) -> ActuatorResult:
     attempts = first.attempts + [{"diameter_mm": key[0], "n_parallel": key[1], "start": start,
                                   "status": sol.status, "objective": sol.objective, "feasible": bool(sol.success),
                                   "seconds": 0.0, "relaxed": sorted(relax)}]
-    return _result(pam, data, prob, best, attempts, t0 - first.seconds, bone, mount)
+    out = _result(pam, data, prob, best, attempts, t0 - first.seconds, bone, mount)
+    out.skipped = list(first.skipped)
+    return out
 
 
 def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None):
@@ -781,7 +808,8 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         log.append(f"actuator {r.id} {r.name}: {r.status} in {r.seconds:.1f} s; attempts: " +
                    "; ".join(f"{a['diameter_mm']} mm x{a['n_parallel']} {a['start']}: {a['status']} "
                              f"J={a['objective']:.4g}{'' if a['feasible'] else ' (infeasible)'} ({a['seconds']:.1f} s)"
-                             for a in r.attempts))
+                             for a in r.attempts)
+                   + ("; not tried, dominated: " + "; ".join(r.skipped) if r.skipped else ""))
         if r.bone:
             log.extend(r.bone["log"])
             log.append(f"  bone-mesh clearance of actuator {r.id} {r.name}: " + bone_line(r.bone))

@@ -685,6 +685,39 @@ def test_unit_budget_caps_the_parallel_counts_tried():
     assert 2 in counts[1] and 3 not in counts[1]
 
 
+def test_dominated_tries_are_left_out_and_change_nothing(monkeypatch):
+    """A diameter / count whose mass penalty alone (Festo's shortest resting length, objective >= 0) scores
+    more than a feasible try with at most as many PAMs is not solved: with a heavy mass weight the 40 mm
+    try of iliacus is left out and named, the result (diameter, count, objective, route) and the unit
+    budget's candidates it could choose from are those of the run that solves every try."""
+    import io
+
+    from pamkin import festo
+
+    design = load_design()
+    others = sum(p.n_parallel for p in design.pams if p.id != 26)
+    cfg = RunConfig(**{**FAST_FIT, "multistart": 0, "weight_mass": 0.5, "max_units": 2 * (others + 2)},
+                    actuators=[26], workers=1, diameters_mm=[10, 20, 40], max_parallel=2, walking_min=0.0)
+    runs = {}
+    for prune in (True, False):
+        monkeypatch.setattr(run_mod, "PRUNE_DOMINATED", prune)
+        (r,) = run_mod.solve_all(design, cfg, io.StringIO())
+        runs[prune] = r
+    pruned, full = runs[True], runs[False]
+    tried = {(a["diameter_mm"], a["n_parallel"]) for a in pruned.attempts}
+    assert (40, 1) not in tried and any(s.startswith("40 mm x1 ") for s in pruned.skipped), pruned.skipped
+    assert len(pruned.attempts) < len(full.attempts) and not full.skipped
+    # the bound named is the 40 mm PAM's mass penalty at Festo's shortest resting length (120 mm), and the
+    # full run's own 40 mm try scores above it
+    low = cfg.weight_mass * 2 * float(festo.pam_mass(festo.nominal_length_range(40)[0], 40))
+    assert f"its mass alone scores {low:.4g}" in next(s for s in pruned.skipped if s.startswith("40 mm x1 "))
+    full40 = [a for a in full.attempts if (a["diameter_mm"], a["n_parallel"]) == (40, 1) and a["feasible"]]
+    assert all(a["objective"] >= 0 for a in full40)
+    assert (pruned.pam.diameter_mm, pruned.n_parallel) == (full.pam.diameter_mm, full.n_parallel)
+    assert pruned.pam.resting_length_m == pytest.approx(full.pam.resting_length_m, abs=1e-9)
+    assert [p.location for p in pruned.pam.points] == pytest.approx([p.location for p in full.pam.points], abs=1e-9)
+
+
 @pytest.mark.skipif(not __import__("pamkin.gait").gait.DEFAULT_IK.is_file(), reason="walking trial (../shared/gait) not available")
 def test_run_walking_check_resizes_an_actuator_at_the_pressure_limit(tmp_path, monkeypatch):
     """The thesis design with only its tensor fasciae latae optimised (10 or 20 mm, one unit): the unit
