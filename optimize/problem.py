@@ -55,6 +55,7 @@ class Solution:
     seconds: float
     z: np.ndarray | None = None
     skip_capsules: bool = False         # checked against the bone meshes instead of the capsules
+    mount_segment: int | None = None    # the problem's segment given for the PAM (a warm start's), if any
 
 
 def _point_segment_distance(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:

@@ -103,10 +103,13 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     best_problem: list = [None]
     best_score = [np.inf]
 
+    def mass_penalty(d: int, n: int, rest: float) -> float:
+        """The objective's mass penalty of n PAMs of diameter d and resting length ``rest`` (both sides)."""
+        return cfg.weight_mass * 2 * n * float(festo.pam_mass(rest, d))
+
     def score(sol) -> float:
-        """Objective plus the mass penalty of the PAMs on the route (both sides)."""
-        return sol.objective + cfg.weight_mass * 2 * sol.n_parallel * float(festo.pam_mass(sol.rest_length,
-                                                                                           sol.diameter_mm))
+        """Objective plus the mass penalty of the PAMs on the route."""
+        return sol.objective + mass_penalty(sol.diameter_mm, sol.n_parallel, sol.rest_length)
 
     def problem(d: int, relax=frozenset(), mount: int | None = None):
         if (d, relax, mount) not in problems:
@@ -142,8 +145,7 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         length >= Festo's shortest, or the fixed one) scores more than a feasible try with at most n PAMs."""
         if not PRUNE_DOMINATED:
             return False
-        rest = pam.resting_length_m if cfg.fix_lengths else festo.nominal_length_range(d)[0]
-        low = cfg.weight_mass * 2 * n * float(festo.pam_mass(rest, d))
+        low = mass_penalty(d, n, pam.resting_length_m if cfg.fix_lengths else festo.nominal_length_range(d)[0])
         by = [key for key, (sc, _, _) in candidates.items() if key[1] <= n and sc < low]
         if by:
             skipped.append(f"{d} mm x{n} (its mass alone scores {low:.4g}, more than {by[0][0]} mm x{by[0][1]})")
@@ -347,7 +349,7 @@ def _finish_choice(task: tuple) -> ActuatorResult:
     if key in first.candidates:
         _, sol, relax = first.candidates[key]
         prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax, _bracket(pam, seed, regions, cfg),
-                               getattr(sol, "mount_segment", None))
+                               sol.mount_segment)
         start = "unit budget choice"
     else:
         relax = frozenset(first.relaxed)
