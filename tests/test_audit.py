@@ -13,7 +13,7 @@ import trimesh
 import pamkin
 from pamkin import festo
 from pamkin.audit import AUDIT_STREAM, AuditOptions, audit_design, load_limits, random_poses
-from pamkin.bones import BoneSet, capsule_distance, capsule_pair_overlap
+from pamkin.bones import BoneSet, capsule_distance, capsule_pair_overlap, segment_distances
 from pamkin.cli import main
 from pamkin.design import Design, Pam, load_design
 from pamkin.errors import DataFileError
@@ -79,6 +79,77 @@ def test_two_segments_known_distance():
     D = np.array([[0.5, 0.5, 1], [0.5, 0.02, 1]])
     dist, s = capsule_pair_overlap(A, B, 0.015, C, D, 0.015)
     assert s == 1 and dist == pytest.approx(-0.01, abs=1e-9)
+
+
+
+def test_segment_distances_match_coal():
+    """The vectorised segment distance equals coal's capsule distance (radius 0) on random segments,
+    points (zero length), parallel and collinear pairs and near-parallel ones."""
+    rng = np.random.default_rng(3)
+    n = 3000
+    A, B, C, D = (rng.normal(size=(n, 3)) for _ in range(4))
+    B[:100] = A[:100]                                              # a point and a segment
+    D[100:200] = C[100:200]                                        # a segment and a point
+    B[200:300], D[200:300] = A[200:300], C[200:300]                # two points
+    D[300:600] = C[300:600] + (B[300:600] - A[300:600]) * rng.uniform(-2, 2, (300, 1))   # parallel
+    u = B[600:800] - A[600:800]
+    C[600:800], D[600:800] = A[600:800] + 0.3 * u, A[600:800] + 1.7 * u                # collinear, overlapping
+    D[800:900] = C[800:900] + (B[800:900] - A[800:900]) + 1e-9 * rng.normal(size=(100, 3))  # near-parallel
+    d = segment_distances(A, B, C, D)
+    ref = np.array([capsule_distance(A[i], B[i], 0.0, C[i], D[i], 0.0) for i in range(n)])
+    # coal gives a capsule of radius 0 a radius of 1e-9 (pamkin.bones.capsule_distance)
+    np.testing.assert_allclose(d, ref + 2e-9, atol=1e-9)
+    assert np.all(d[600:800] < 1e-9)
+    # a hand case: skew perpendicular segments 0.3 apart, the closest points inside both
+    assert segment_distances(np.array([[0.0, 0, 0]]), np.array([[1.0, 0, 0]]),
+                             np.array([[0.5, 0.3, -1]]), np.array([[0.5, 0.3, 1]]))[0] == pytest.approx(0.3, abs=1e-15)
+
+
+def test_capsule_pair_overlap_is_the_smallest_distance_over_samples():
+    """Over moving capsules the overlap found is the deepest sample's (coal's distance there), and without
+    an overlap the smallest distance, as brute-force coal over every sample gives."""
+    rng = np.random.default_rng(5)
+    for trial in range(20):
+        S = 200
+        A = rng.normal(scale=0.05, size=(S, 3))
+        B = A + rng.normal(scale=0.2, size=(S, 3))
+        C = rng.normal(scale=0.05, size=(S, 3)) + [0.05 + 0.02 * trial, 0, 0]
+        D = C + rng.normal(scale=0.2, size=(S, 3))
+        ra, rb = 0.015, 0.03
+        brute = np.array([capsule_distance(A[s], B[s], ra, C[s], D[s], rb) for s in range(S)])
+        dist, s = capsule_pair_overlap(A, B, ra, C, D, rb)
+        assert dist == pytest.approx(brute.min(), abs=1e-12)
+        assert brute[s] == pytest.approx(dist, abs=1e-12)
+
+
+def test_cached_hierarchies_give_libigl_signed_distance(skel):
+    """BoneSet's distances (AABB tree and winding-number hierarchy built once per mesh) equal
+    igl.signed_distance's with the fast-winding-number sign, on points around every Gait2392 bone."""
+    import igl
+
+    human = pamkin.gait2392()
+    try:
+        bones = BoneSet(human)
+    except DataFileError:
+        pytest.skip("no Gait2392 bone meshes here")
+    rng = np.random.default_rng(7)
+    for body in bones.bodies:
+        for m in bones.meshes[body]:
+            lo, hi = m.vertices.min(0) - 0.02, m.vertices.max(0) + 0.02
+            P = np.vstack([rng.uniform(lo, hi, (400, 3)),
+                           m.vertices[rng.integers(0, len(m.vertices), 100)] + rng.normal(0, 0.002, (100, 3))])
+            S, _, Cref, _ = igl.signed_distance(P, m.vertices, m.faces,
+                                                sign_type=igl.SIGNED_DISTANCE_TYPE_FAST_WINDING_NUMBER)
+            one = BoneSet.from_meshes(human, {body: [(m.vertices, m.faces)]})
+            for _ in range(2):                        # the second call reuses the hierarchies
+                d, c, _ = one.body_closest(body, P)
+                np.testing.assert_array_equal(np.sign(d), np.where(S < 0, -1.0, 1.0))
+                np.testing.assert_allclose(c, Cref, atol=1e-12)
+                np.testing.assert_allclose(np.abs(d), np.linalg.norm(P - Cref, axis=1), atol=1e-12)
+    import pickle
+    again = pickle.loads(pickle.dumps(one))          # the hierarchies are not pickled, built again
+    assert "_tree_cache" not in again.__dict__
+    np.testing.assert_allclose(again.body_closest(body, P)[0], d, atol=0)
 
 
 # ----------------------------------------------------------------------------- samples
