@@ -88,6 +88,7 @@ def summarize(seed: Design, new: Design, results, cfg, progress=None) -> dict:
             diff = max(diff, float(np.max(np.abs(tn - r.torque_samples[label]))))
         rows.append({
             "id": r.id, "name": r.name, "diameter_mm": pam.diameter_mm, "n_parallel": pam.n_parallel,
+            "transmission": int(pam.transmission),
             "resting_length_m": round(pam.resting_length_m, 6), "tendon_length_m": round(pam.tendon_length_m, 6),
             "nrmse_before": round(cb.primary.nrmse, 4), "nrmse_after": round(ca_.primary.nrmse, 4),
             "nrmse_2d_after": round(ca_.secondary[0].nrmse, 4) if ca_.secondary else None,

@@ -78,6 +78,9 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      optimize.gait_check)
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
+    [transmission]               # per actuator: "4" = 2 puts a 2:1 pulley block on its PAM (pamkin.design:
+                                 # the route moves twice the PAM's stroke at half its force); default: the
+                                 # seed design's (1: direct)
 """
 
 from __future__ import annotations
@@ -88,6 +91,7 @@ import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
+from pamkin.design import TRANSMISSIONS
 from pamkin.errors import DataFileError
 
 _SECTIONS = {
@@ -172,6 +176,7 @@ class RunConfig:
     max_units: int = 60
     walking_min: float = 0.9
     regions: dict[str, float | list[float]] = field(default_factory=dict)
+    transmission: dict[str, int] = field(default_factory=dict)
     source: str = ""
 
     def validate(self) -> None:
@@ -183,7 +188,7 @@ class RunConfig:
             return DataFileError(self.source or "<config>", f"{key}: {msg}")
 
         for f in fields(self):
-            if f.name in ("source", "regions"):
+            if f.name in ("source", "regions", "transmission"):
                 continue
             key, value = _KEYS[f.name], getattr(self, f.name)
             kind = _KINDS[f.name]
@@ -253,6 +258,14 @@ class RunConfig:
             if len(vals) not in (1, 3) or any(not _is_number(x) or x < 0 for x in vals) \
                     or (isinstance(v, list) and len(vals) != 3):
                 raise bad(f"regions.{key}", f"a non-negative number or 3 non-negative numbers [m], got {v!r}")
+        if not isinstance(self.transmission, dict):
+            raise bad("transmission", "must be a table")
+        for key, v in self.transmission.items():
+            if not re.fullmatch(r"[0-9]+", str(key)):
+                raise bad(f"transmission.{key}", "keys are actuator ids (\"4\")")
+            if isinstance(v, bool) or v not in TRANSMISSIONS:
+                raise bad(f"transmission.{key}", f"must be one of {TRANSMISSIONS} (1: direct, 2: a 2:1 pulley "
+                                                 f"block), got {v!r}")
 
     def check_design(self, design) -> None:
         """Check actuator ids and region keys against the seed design's actuators and route points.
@@ -276,6 +289,10 @@ class RunConfig:
         if odd and tuple(self.one_segment_actuators) != ONE_SEGMENT_ACTUATORS:   # the default list fits the v2 seed
             raise DataFileError(self.source or "<config>", f"limits.one_segment_actuators: unknown actuator id(s) "
                                                            f"{odd}; the design {design.name!r} has {sorted(pams)}")
+        for key in self.transmission:
+            if int(key) not in pams:
+                raise DataFileError(self.source or "<config>", f"transmission.{key}: names no actuator of the "
+                                                               f"design {design.name!r} (ids {sorted(pams)})")
         for key in self.regions:
             aid, _, point = str(key).partition(".")
             if int(aid) not in pams:
@@ -285,6 +302,21 @@ class RunConfig:
             if point and point not in names:
                 raise DataFileError(self.source or "<config>", f"regions.{key}: actuator {aid} has no point "
                                                                f"{point!r} (points: {names})")
+
+    def apply_transmission(self, design):
+        """The design with the ``[transmission]`` table's ratios put on its PAMs (others unchanged). A PAM whose
+        ratio changes from k to k' keeps its strain at every route length: resting length l0·k/k', tendon
+        t + 2·fitting·(k − k') (clipped at 0) — a start for the optimiser, which solves both again."""
+        import dataclasses  # noqa: PLC0415
+
+        for key, v in self.transmission.items():
+            p = design.pam(int(key))
+            k, k2 = p.transmission, int(v)
+            if k2 != k:
+                p = dataclasses.replace(p, transmission=k2, resting_length_m=p.resting_length_m * k / k2,
+                                        tendon_length_m=max(p.tendon_length_m + 2 * design.fitting_length_m * (k - k2), 0.0))
+            design = design.replace_pam(p)
+        return design
 
     def one_segment_for(self, actuator: int) -> bool:
         """Whether actuator ``actuator`` is solved with the one-segment rows (``one_segment`` or listed)."""
@@ -332,10 +364,10 @@ def load_config(path: str | Path | None) -> RunConfig:
                 if k not in _SECTIONS[key]:
                     raise DataFileError(str(path), f"unknown key {key}.{k}; known: {sorted(_SECTIONS[key])}")
                 kwargs[_SECTIONS[key][k]] = v
-        elif key == "regions":
+        elif key in ("regions", "transmission"):
             if not isinstance(value, dict):
-                raise DataFileError(str(path), "[regions] must be a table")
-            kwargs["regions"] = dict(value)
+                raise DataFileError(str(path), f"[{key}] must be a table")
+            kwargs[key] = dict(value)
         elif key in top:
             kwargs[key] = value
         else:

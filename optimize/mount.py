@@ -13,7 +13,8 @@ strain and force limits and the segment on the held-out limit-check poses (:mod:
 a miss tightens the rows once and solves again). The result replaces the spanning PAM when the root of
 the objective grows by at most ``cfg.mount_cost``; otherwise the run names the PAM and the reason:
 
-* **out of reach**: the PAM's excursion needs a resting length of at least ΔL / (c + s) (c = Festo's
+* **out of reach**: the PAM's excursion needs a resting length of at least ΔL / (k (c + s)) (k = the
+  transmission, :mod:`pamkin.design`; c = Festo's
   25 % contraction or kmax, s = the stretch limit), more than the longest segment holds at its shortest
   less the fittings — no choice of lengths can put it on one segment; the numbers are reported;
 * **infeasible**: within reach by that bound, but the solve finds no lengths meeting every limit;
@@ -61,20 +62,23 @@ def held_out_margin(pam: Pam, model, q: np.ndarray, segment: int, fitting: float
         X, _ = ps.point_positions(state)
         L = ps.evaluate(state, moment_arms=False).lengths[:, 0]
     seg = np.linalg.norm(X[:, segment + 1] - X[:, segment], axis=1)
-    return float(np.min(body_room(seg, pam.resting_length_m, L - 2 * fitting - pam.tendon_length_m, fitting)))
+    pam_len = (L - pam.tendon_length_m) / pam.transmission - 2 * fitting
+    return float(np.min(body_room(seg, pam.resting_length_m, pam_len, fitting)))
 
 
-def reach_bound(L: np.ndarray, seg_min: float, diameter: int, cfg, fitting: float) -> tuple[float, float]:
+def reach_bound(L: np.ndarray, seg_min: float, diameter: int, cfg, fitting: float,
+                transmission: int = 1) -> tuple[float, float]:
     """(least resting length the excursion of the path lengths ``L`` allows, most the segment holds) [m].
 
-    The least: ΔL / (c + s), with c the contraction limit (Festo's maximum, or kmax at the longest
-    resting length the segment allows if lower) and s the stretch limit; the most: the segment at its
-    shortest less both fittings and :data:`~optimize.problem.SEGMENT_MARGIN`."""
+    The least: ΔL / (k (c + s)), with k the transmission (the PAM's stroke is the route's ÷ k), c the
+    contraction limit (Festo's maximum, or kmax at the longest resting length the segment allows if
+    lower) and s the stretch limit; the most: the segment at its shortest less both fittings and
+    :data:`~optimize.problem.SEGMENT_MARGIN`."""
     most = seg_min - 2 * fitting - SEGMENT_MARGIN
     km = cfg.kmax_scale * float(festo.kmax(max(most, 1e-3), diameter, model=cfg.force_model))
     c = min(km, festo.max_contraction(diameter)) if cfg.rated_force else km
     s = cfg.pretension_scale * festo.max_pretension(diameter)
-    return float((np.max(L) - np.min(L)) / (c + s)), float(most)
+    return float((np.max(L) - np.min(L)) / (transmission * (c + s))), float(most)
 
 
 def mounted_segment(prob, z: np.ndarray, tol: float = 1e-6) -> int | None:
@@ -153,11 +157,12 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
     info: dict = {"mounted": False, "objective_before": j_before, "rest_before_m": float(best.rest_length),
                   "tendon_before_m": float(max(best.tendon_length, 0.0))}
     order = list(np.argsort(-seg_min))[:N_SEGMENTS]
-    need, most = reach_bound(L, float(seg_min[order[0]]), prob.d, cfg, f)
+    need, most = reach_bound(L, float(seg_min[order[0]]), prob.d, cfg, f, prob.k)
     info.update(least_rest_m=need, segment_holds_m=most, excursion_m=float(np.ptp(L)), segment_index=int(order[0]))
     if need > most:
         info.update(reason="out of reach", segment=names[order[0]],
-                    line=f"cannot sit on one straight segment: its excursion {1e3 * np.ptp(L):.0f} mm needs a "
+                    line=f"cannot sit on one straight segment: its excursion {1e3 * np.ptp(L):.0f} mm"
+                         f"{f' (a {prob.k}:1 block)' if prob.k != 1 else ''} needs a "
                          f"resting length >= {need:.3f} m, the longest segment ({names[order[0]]}) holds "
                          f"{most:.3f} m at its shortest")
         return best, info
@@ -166,11 +171,11 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
     missed: dict[str, float] = {}        # the limits the failed tries exceeded (the held-out ones included)
     try:
         for j in order:
-            _, most_j = reach_bound(L, float(seg_min[j]), prob.d, cfg, f)
+            _, most_j = reach_bound(L, float(seg_min[j]), prob.d, cfg, f, prob.k)
             if need > most_j:
                 continue
             lt0 = np.array([float(np.clip(min(best.rest_length, most_j), prob.lbx[-2], prob.ubx[-2])), 0.0])
-            lt0[1] = float(np.clip(L.max() - 2 * f - lt0[0], prob.lbx[-1], prob.ubx[-1]))
+            lt0[1] = float(np.clip(L.max() - prob.k * (2 * f + lt0[0]), prob.lbx[-1], prob.ubx[-1]))
             ms = _MountSolver(prob, int(j), best.z, best.n_parallel)
             extra = 0.0
             sol = None

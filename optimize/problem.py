@@ -127,10 +127,12 @@ class ActuatorProblem:
                 X.append(_dm(data.p[:, b].T) + rot)
         self.X = X
         self.L = path_length(X, xp=ca)                            # (1, S)
-        pam_len = self.L - 2 * data.fitting_length - self.t
+        #: transmission (pamkin.design): the route moves k times the PAM's stroke at 1/k of its force
+        self.k = int(data.pam.transmission)
+        pam_len = (self.L - self.t) / self.k - 2 * data.fitting_length
         self.strain = (self.l0 - pam_len) / self.l0
         self.unit_force = festo.force(self.strain, self.l0, data.pressure, diameter, model=data.force_model)
-        self.force = self.npar * self.unit_force
+        self.force = self.npar * self.unit_force / self.k
         self.kmax = festo.kmax(self.l0, diameter, model=data.force_model)
         # objective
         J = 0
@@ -293,7 +295,7 @@ class ActuatorProblem:
         ci = [int(s) for s in self.data.constraint_idx]
         seg = _norm_rows(self.X[segment + 1] - self.X[segment])[0, ci]
         rest = (seg - (self.l0 + 2 * self.data.fitting_length + SEGMENT_MARGIN)).T
-        actual = (seg - (self.L[0, ci] - self.t) - SEGMENT_MARGIN).T
+        actual = (seg - (self.L[0, ci] - self.t) / self.k - SEGMENT_MARGIN).T
         return rest, actual
 
     def _seed_world(self, i: int) -> np.ndarray:
@@ -313,10 +315,10 @@ class ActuatorProblem:
             rest, tendon = self.data.pam.resting_length_m, max(self.data.pam.tendon_length_m, 0.0)
         elif rest is None or tendon is None or tendon < 0:
             km = float(festo.kmax(0.5, self.d, model=self.data.force_model))
-            delta = L.max() - L.min()
+            delta = (L.max() - L.min()) / self.k
             rest = max(delta / (0.8 * km), 1e-3)
-            rest = min(rest, L.max() - 2 * self.data.fitting_length - 1e-3)
-            tendon = L.max() - 2 * self.data.fitting_length - rest
+            rest = min(rest, L.max() / self.k - 2 * self.data.fitting_length - 1e-3)
+            tendon = L.max() - self.k * (2 * self.data.fitting_length + rest)
         rest = float(np.clip(rest, self.lbx[-2], self.ubx[-2]))
         tendon = float(np.clip(tendon, self.lbx[-1], self.ubx[-1]))
         return np.array(z + [rest, tendon])

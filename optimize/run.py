@@ -105,7 +105,7 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
 
     def mass_penalty(d: int, n: int, rest: float) -> float:
         """The objective's mass penalty of n PAMs of diameter d and resting length ``rest`` (both sides)."""
-        return cfg.weight_mass * 2 * n * float(festo.pam_mass(rest, d))
+        return cfg.weight_mass * 2 * n * float(festo.pam_mass(rest, d) + festo.transmission_mass(rest, d, pam.transmission))
 
     def score(sol) -> float:
         """Objective plus the mass penalty of the PAMs on the route."""
@@ -433,7 +433,7 @@ def solution_pam(pam: Pam, best) -> Pam:
             new_points.append(shift_moving_point(pt, loc))
     return Pam(pam.id, pam.name, pam.human_muscles, pam.primary_coordinate, pam.secondary_coordinates,
                best.diameter_mm, best.n_parallel, best.rest_length, best.tendon_length, tuple(new_points),
-               pam.notes)
+               pam.notes, pam.transmission)
 
 
 def _result(pam: Pam, data, prob, best, attempts: list, t0: float, bone: dict, mount: dict | None = None) -> ActuatorResult:
@@ -788,6 +788,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
                 warm_ids.add(p.id)
     _STATE["warm_ids"] = warm_ids      # these actuators try their warm diameter and count first
     cfg.check_design(seed)
+    seed = cfg.apply_transmission(seed)
     seed = Design(seed.name, seed.pams, cfg.pressure_Pa, cfg.force_model, seed.fitting_length_m, seed.rom,
                   seed.description, seed.path, dict(seed.extra))
     out_dir = Path(out_dir)

@@ -47,7 +47,7 @@ import yaml
 from . import festo
 from ._resources import SHARED_DIR, data_file
 from .compare import compare_pam
-from .design import Design, load_design
+from .design import Design, load_design, pam_unit_mass
 from .errors import ConfigurationError, DataFileError, RangeWarning
 from .model import Model
 from .osim import ConditionalPathPoint, MovingPathPoint, PathPoint
@@ -376,7 +376,7 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
         row["mount_margin_m"] = margin
         row["bends_over"] = None if margin >= 0 else (
             pam.points[j + 1].name if j + 1 < len(pam.points) - 1 else pam.points[j].name)
-        F = st_all.forces[:, k] / pam.n_parallel
+        F = st_all.unit_forces[:, k]
         row["peak_force_per_unit_N"] = float(np.max(F))
         rated = festo.F_MAX_THEORETICAL[pam.diameter_mm]
         row["rated_force_N"] = rated
@@ -432,10 +432,11 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
     units = np.array([p.n_parallel for p in des.pams])
     rest = np.array([p.resting_length_m for p in des.pams])
     dia = np.array([p.diameter_mm for p in des.pams])
-    mass = sum(float(festo.pam_mass(p.resting_length_m, p.diameter_mm)) * p.n_parallel for p in des.pams) * 2
+    mass = sum(pam_unit_mass(p) * p.n_parallel for p in des.pams) * 2
     volume = float(np.sum(units * np.pi * (dia / 2000.0) ** 2 * rest)) * 2
     for row, p in zip(rows, des.pams):
-        row["mass_kg"] = float(festo.pam_mass(p.resting_length_m, p.diameter_mm)) * p.n_parallel
+        row["mass_kg"] = pam_unit_mass(p) * p.n_parallel
+        row["transmission"] = int(p.transmission)
 
     # ---- gait capability
     gait_frac, gait_limiting = None, None
@@ -541,9 +542,10 @@ def _sensitivity(right: PamRobot, human: Model, rom: RangeOfMotion, rows: list[d
             res = ps.evaluate(kin.forward(q, warn_range=False))
         L = res.lengths
         Rm = res.dense_moment_arms(len(right.model.coordinates))[:, :, ci]
-        strain = (pam.resting_length_m - (L - 2 * des.fitting_length_m - pam.tendon_length_m)) / pam.resting_length_m
+        k = pam.transmission
+        strain = (pam.resting_length_m - ((L - pam.tendon_length_m) / k - 2 * des.fitting_length_m)) / pam.resting_length_m
         F = festo.force(strain, pam.resting_length_m, des.pressure_Pa, pam.diameter_mm, model=des.force_model)
-        tau = F * pam.n_parallel * Rm                      # (S, variants)
+        tau = F * pam.n_parallel / k * Rm                  # (S, variants)
         worst, where = 0.0, None
         for i in range(len(pam.points)):
             cols = {lab: j for j, lab in enumerate(labels) if lab is not None and lab[0] == i}

@@ -19,12 +19,20 @@ mirror image (z → −z in every body frame, ``_r`` → ``_l``). Format::
         n_parallel: 1
         resting_length_m: 0.4
         tendon_length_m: 0.1          # artificial tendon (may be negative only as a flagged defect)
+        transmission: 1               # optional: 2 = a 2:1 pulley block on the PAM's free end
         points:                       # route, origin first; PathPoint / MovingPathPoint
           - {name: p5, body: pelvis, location: [-0.126, -0.103, 0.069]}
           - ...
 
 Lengths: path length L = l_pam + 2·fitting + tendon, so the PAM's own length is
 l_pam = L − 2·fitting − tendon and its contraction ε = (l_rest − l_pam)/l_rest.
+
+Transmission k (``transmission``, 1 or 2; default 1): with k = 2 the PAM and its fittings sit in a
+rigid frame in series with the cable, a pulley on the PAM's free end carrying the cable twice (a 2:1
+block). The route's length then changes k times as fast as the PAM's and its tension is the PAM's
+force ÷ k: L = k·(l_pam + 2·fitting) + tendon, so l_pam = (L − tendon)/k − 2·fitting, and the force
+on the route (the torque's) is n_parallel · F(ε) / k. A PAM whose excursion needs more length than
+any straight segment of its route holds (at k = 1) fits on one with k = 2, at twice the force.
 """
 
 from __future__ import annotations
@@ -62,6 +70,8 @@ V2_SEED_DESIGN = ROBOT_DIR / "data" / "v2_seed_design.yaml"
 #: The robot's current design (starts as the thesis design; ``pamkin optimize --apply`` replaces it).
 ROBOT_DESIGN = ROBOT_DIR / "data" / "pam_biped.yaml"
 DIAMETERS_MM = (10, 20, 40)
+#: Transmission ratios a PAM may have: 1 (the cable pulls the PAM directly), 2 (a 2:1 pulley block).
+TRANSMISSIONS = (1, 2)
 _REQUIRED = ("id", "name", "human_muscles", "primary_coordinate", "diameter_mm", "resting_length_m",
              "tendon_length_m", "points")
 
@@ -82,6 +92,8 @@ class Pam:
         tendon_length_m: Artificial tendon length [m].
         points: Route (origin first).
         notes: Free text.
+        transmission: Cable legs at the PAM's free end: 1 (direct) or 2 (a 2:1 pulley block: the
+            route moves twice the PAM's stroke at half its force).
     """
 
     id: int
@@ -95,6 +107,7 @@ class Pam:
     tendon_length_m: float
     points: tuple[AnyPathPoint, ...]
     notes: str = ""
+    transmission: int = 1
 
     @property
     def key(self) -> str:
@@ -152,10 +165,21 @@ class Design:
             "secondary_coordinates": list(p.secondary_coordinates),
             "diameter_mm": int(p.diameter_mm), "n_parallel": int(p.n_parallel),
             "resting_length_m": float(p.resting_length_m), "tendon_length_m": float(p.tendon_length_m),
+            **({"transmission": int(p.transmission)} if p.transmission != 1 else {}),
             "notes": p.notes,
             "points": [_point_to_dict(pt) for pt in p.points],
         } for p in self.pams]
         return out
+
+
+def pam_unit_mass(pam: Pam) -> float:
+    """Estimated mass [kg] of one of a PAM's parallel units: the PAM with its fittings
+    (:func:`pamkin.festo.pam_mass`) and its transmission (:func:`pamkin.festo.transmission_mass`);
+    both assumptions, for bulk comparisons."""
+    from . import festo  # noqa: PLC0415
+
+    return float(festo.pam_mass(pam.resting_length_m, pam.diameter_mm)
+                 + festo.transmission_mass(pam.resting_length_m, pam.diameter_mm, pam.transmission))
 
 
 def _fail(path: str, msg: str) -> DataFileError:
@@ -185,6 +209,7 @@ def design_from_dict(data: dict, path: str = "<design>", bodies: list[str] | Non
             rest = float(d["resting_length_m"])
             tendon = float(d["tendon_length_m"])
             npar = int(d.get("n_parallel", 1))
+            ratio = d.get("transmission", 1)
         except (TypeError, ValueError) as e:
             raise _fail(path, f"{where}: {e}") from None
         if not np.isfinite(rest) or rest <= 0:
@@ -193,6 +218,9 @@ def design_from_dict(data: dict, path: str = "<design>", bodies: list[str] | Non
             raise _fail(path, f"{where}: tendon_length_m must be finite")
         if npar not in (1, 2, 3):
             raise _fail(path, f"{where}: n_parallel must be 1, 2 or 3")
+        if isinstance(ratio, bool) or ratio not in TRANSMISSIONS:
+            raise _fail(path, f"{where}: transmission must be one of {TRANSMISSIONS} (cable legs at the PAM's "
+                              f"free end), is {ratio!r}")
         try:
             points = tuple(point_from_dict(p) for p in d["points"])
         except (KeyError, TypeError, ValueError) as e:
@@ -212,7 +240,7 @@ def design_from_dict(data: dict, path: str = "<design>", bodies: list[str] | Non
                 raise _fail(path, f"{where}: unknown coordinate(s) {bad}")
         pams.append(Pam(int(d["id"]), str(d["name"]), tuple(d["human_muscles"]), d["primary_coordinate"],
                         tuple(d.get("secondary_coordinates", [])), int(d["diameter_mm"]), npar, rest,
-                        tendon, points, str(d.get("notes", ""))))
+                        tendon, points, str(d.get("notes", "")), int(ratio)))
     known = {"name", "description", "rom", "force_model", "pressure_Pa", "fitting_length_m", "pams"}
     try:
         return Design(str(data.get("name", Path(path).stem)), tuple(pams), float(data.get("pressure_Pa", 620e3)),

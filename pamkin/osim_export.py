@@ -28,11 +28,12 @@ What is written:
   ignores it). OpenSim 4.6 requires the three components to depend on one coordinate
   (pamkin does not): other points are refused with :class:`OsimExportError`.
 * ``optimal_force`` = the PAM's maximum force at 620 kPa, F620(l0) (:func:`pamkin.festo.f620`,
-  the v3 model's isometric force at zero contraction) × ``n_parallel``; ``min_control`` 0,
+  the v3 model's isometric force at zero contraction) × ``n_parallel`` ÷ the transmission (a 2:1
+  block halves the route's tension, :mod:`pamkin.design`); ``min_control`` 0,
   ``max_control`` 1. OpenSim's PathActuator tension is control × optimal_force, independent
   of length: a linear stand-in for the PAM, whose real force falls with contraction
   (:func:`pamkin.festo.force`). An XML comment in each actuator states the diameter, resting
-  length, parallel count, tendon and fitting lengths and the human muscles replaced.
+  length, parallel count, transmission, tendon and fitting lengths and the human muscles replaced.
 
 Human muscles of the skeleton are not written (the robot has none).
 """
@@ -185,8 +186,9 @@ def coordinate_range(coord: Coordinate, rom: RangeOfMotion | None) -> tuple[floa
 
 
 def pam_optimal_force(pam: Pam) -> float:
-    """``optimal_force`` written for a PAM: F620(resting length, diameter) × n_parallel [N]."""
-    return float(festo.f620(pam.resting_length_m, pam.diameter_mm)) * pam.n_parallel
+    """``optimal_force`` written for a PAM: F620(resting length, diameter) × n_parallel ÷ transmission [N]
+    (the route's tension)."""
+    return float(festo.f620(pam.resting_length_m, pam.diameter_mm)) * pam.n_parallel / pam.transmission
 
 
 # --------------------------------------------------------------------------- elements
@@ -269,8 +271,10 @@ def _actuator_element(design: Design, p: Pam, side: str, skeleton: OsimModel) ->
         f"PAM {p.id} {p.name!r} ({'right' if side == 'r' else 'left, mirrored'} side): Festo DMSP "
         f"{p.diameter_mm} mm, resting length {p.resting_length_m:.6g} m (each PAM, fittings excluded), "
         f"{p.n_parallel} in parallel, artificial tendon {p.tendon_length_m:.6g} m, fittings 2 x "
-        f"{design.fitting_length_m:.6g} m; replaces {humans}. optimal_force = F620(resting length) x "
-        f"n_parallel = {f_max:.6g} N, the maximum force at 620 kPa (pamkin.festo.f620, zero contraction); "
+        f"{design.fitting_length_m:.6g} m"
+        f"{f', a {p.transmission}:1 pulley block (the route moves {p.transmission} x the PAM stroke)' if p.transmission != 1 else ''}"
+        f"; replaces {humans}. optimal_force = F620(resting length) x "
+        f"n_parallel / transmission = {f_max:.6g} N, the maximum force at 620 kPa (pamkin.festo.f620, zero contraction); "
         f"OpenSim's tension = control x optimal_force, control in [0, 1], independent of length (the real "
         f"PAM force falls with contraction).")))
     _text(act, "appliesForce", "true")

@@ -27,9 +27,10 @@ class PamState:
 
     Attributes:
         lengths: Route lengths (N, n) [m].
-        pam_lengths: Length of the PAM itself, route − fittings − tendon (N, n) [m].
+        pam_lengths: Length of the PAM itself, (route − tendon)/transmission − fittings (N, n) [m].
         strain: Contraction ε = (rest − pam length)/rest (N, n) [-], positive contracted.
-        forces: Total force of the PAM(s) on the route (N, n) [N].
+        forces: Tension of the route: the PAMs' force × n_parallel ÷ transmission (N, n) [N].
+        unit_forces: Force of one PAM (N, n) [N] (what Festo's rating limits).
         moment_arms: (N, n, n_coordinates) [m].
         in_range: (N, n) True where −pretension limit ≤ ε ≤ kmax (outside: a "dead zone").
     """
@@ -40,6 +41,7 @@ class PamState:
     forces: np.ndarray
     moment_arms: np.ndarray
     in_range: np.ndarray
+    unit_forces: np.ndarray
 
     @property
     def torques(self) -> np.ndarray:
@@ -79,6 +81,7 @@ class PamRobot:
         self.tendon = np.array([p.tendon_length_m for p in self.pams])
         self.diameter = np.array([p.diameter_mm for p in self.pams])
         self.n_parallel = np.array([p.n_parallel for p in self.pams])
+        self.transmission = np.array([p.transmission for p in self.pams])
 
     @property
     def coordinates(self) -> list[str]:
@@ -97,7 +100,7 @@ class PamRobot:
         st = self.model.kinematics.forward(q)
         res = self.paths.evaluate(st)
         L = res.lengths
-        pam_len = L - 2 * self.design.fitting_length_m - self.tendon
+        pam_len = (L - self.tendon) / self.transmission - 2 * self.design.fitting_length_m
         strain = (self.rest - pam_len) / self.rest
         P = self.design.pressure_Pa if pressure is None else pressure
         F = np.zeros_like(L)
@@ -107,8 +110,8 @@ class PamRobot:
             F[:, cols] = festo.force(strain[:, cols], self.rest[cols], P, int(d), model=self.design.force_model)
             km = festo.kmax(self.rest[cols], int(d), model=self.design.force_model)
             in_range[:, cols] = (strain[:, cols] >= -festo.max_pretension(int(d))) & (strain[:, cols] <= km)
-        F = F * self.n_parallel
-        return PamState(L, pam_len, strain, F, res.dense_moment_arms(len(self.coordinates)), in_range)
+        return PamState(L, pam_len, strain, F * self.n_parallel / self.transmission,
+                        res.dense_moment_arms(len(self.coordinates)), in_range, F)
 
 
 def robot_skeleton() -> Model:

@@ -8,7 +8,7 @@ A view shows, in one self-contained web page (meshcat's static HTML, three.js in
 * human muscles (Gait2392, full activation, static equilibrium) as thin cylinders of radius
   :data:`MUSCLE_RADIUS` through their path points in effect (conditional points only in range);
 * robot PAMs along their routes. A route of length L holds, from its origin: a fitting
-  (``fitting_length_m``), the PAM itself (length rest·(1 − strain) = L − 2·fitting − tendon),
+  (``fitting_length_m``), the PAM itself (length rest·(1 − strain) = (L − tendon)/transmission − 2·fitting),
   then the second fitting and the artificial tendon. The PAM is a cylinder of its Festo nominal
   (inner) diameter; the whole route is underlaid by a thin dark-grey cylinder, so what shows
   beyond the PAM is fittings + tendon. A PAM longer than its route (negative tendon, a flagged

@@ -188,7 +188,8 @@ def thesis_quick_audit():
 
 
 LEGEND = """\
-Columns: id = actuator; PAM = its name; d x n = Festo diameter [mm] x PAMs in parallel; rest = resting
+Columns: id = actuator; PAM = its name; d x n = Festo diameter [mm] x PAMs in parallel (/2: on a 2:1 pulley
+block, pamkin.design transmission); rest = resting
 length [m]; tendon = artificial tendon [m]; NRMSE = RMS(robot - human torque) / human peak over the
 primary coordinate's 1-D sweep (81 samples, independent numpy check; the progress lines' "fit NRMSE"
 is the optimiser's own, on its coarser samples), before = seed design, after = optimised; 2-D = NRMSE
@@ -206,18 +207,18 @@ def print_summary(summary: dict, out: Path, audit_text: str | None = None) -> No
     w = max([len(a["name"]) for a in rows] + [3])
     print(f"\nRun folder {out} ({summary['total_seconds']} s)")
     mesh = summary.get("bone_mesh")
-    print(f"{'id':>3} {'PAM':{w}s} {'d x n':>6} {'rest m':>7} {'tendon m':>8} {'NRMSE before':>12} "
+    print(f"{'id':>3} {'PAM':{w}s} {'d x n':>8} {'rest m':>7} {'tendon m':>8} {'NRMSE before':>12} "
           f"{'after':>6} {'2-D':>6} {'sign':>5} {'dead':>5} {'into bone mm' if mesh else 'clear mm':>8}")
     for a in rows:
         two = "-" if a["nrmse_2d_after"] is None else f"{a['nrmse_2d_after']:.3f}"
-        dn = f"{a['diameter_mm']}x{a['n_parallel']}"
+        dn = f"{a['diameter_mm']}x{a['n_parallel']}" + (f"/{a['transmission']}" if a.get("transmission", 1) != 1 else "")
         if mesh:
             b = mesh.get(str(a["id"]))
             last = "-" if b is None else f"{b['max_segment_penetration_mm']:.1f}" + ("" if b["clear"] else " *")
             last = f"{last:>12}"
         else:
             last = f"{1000 * a['min_bone_clearance_m']:8.1f}"
-        print(f"{a['id']:3d} {a['name']:{w}s} {dn:>6} "
+        print(f"{a['id']:3d} {a['name']:{w}s} {dn:>8} "
               f"{a['resting_length_m']:7.3f} {a['tendon_length_m']:8.3f} {a['nrmse_before']:12.3f} "
               f"{a['nrmse_after']:6.3f} {two:>6} {a['sign_agreement']:5.2f} {a['dead_zone_fraction']:5.2f} {last}")
     print(LEGEND + (MESH_LEGEND if mesh else CAPSULE_LEGEND))

@@ -1,0 +1,243 @@
+"""A PAM with a 2:1 pulley block (``transmission: 2``): the design file, the robot's lengths and forces
+against virtual work and finite differences, the optimiser (a known optimum, CasADi = numpy, the
+one-segment stage's reach), the limit check, walking plans, OpenSim export, the audit and the config."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pamkin
+from pamkin import festo
+from pamkin.design import Design, Pam, design_from_dict, load_design, pam_unit_mass, save_design
+from pamkin.errors import DataFileError
+from pamkin.optimize.config import FAST_FIT, RunConfig, load_config
+from pamkin.optimize.limit_check import limit_excess
+from pamkin.optimize.problem import ActuatorProblem
+from pamkin.optimize.samples import actuator_data
+from pamkin.osim import PathPoint
+from pamkin.robot import PamRobot
+from pamkin.rom import RangeOfMotion
+
+DATA = Path(__file__).resolve().parent / "data"
+FIT = 0.0125
+
+
+@pytest.fixture(scope="module")
+def toy():
+    """two_body.osim (one pin joint "angle"; "arm" hangs 0.3 m below "base"'s origin) and a three-point
+    route: o and v on "base" (a 0.15 m body-fixed segment), i on "arm" 50 mm below the joint."""
+    model = pamkin.load_osim(DATA / "two_body.osim")
+    route = (PathPoint("o", "base", (0.03, -0.12, 0.0)), PathPoint("v", "base", (0.03, -0.27, 0.0)),
+             PathPoint("i", "arm", (0.03, -0.05, 0.0)))
+    return model, route
+
+
+def _robot(model, pam: Pam) -> PamRobot:
+    return PamRobot(Design("t", (pam,)), model, sides=("r",))
+
+
+def test_design_file_round_trip_and_bad_values(tmp_path):
+    des = load_design("thesis")
+    p4 = dataclasses.replace(des.pam(4), transmission=2)
+    out = save_design(des.replace_pam(p4), tmp_path / "d.yaml")
+    again = load_design(out)
+    assert again.pam(4).transmission == 2 and again.pam(5).transmission == 1
+    d = again.to_dict()
+    assert d["pams"][3]["transmission"] == 2 and "transmission" not in d["pams"][4]   # 1 is not written
+    for bad in (3, 0, "2", 1.5, True):
+        d["pams"][3]["transmission"] = bad
+        with pytest.raises(DataFileError, match=r"id 4.*transmission must be one of \(1, 2\)"):
+            design_from_dict(d, "bad.yaml")
+
+
+def test_block_lengths_forces_by_virtual_work_and_finite_differences(toy):
+    """With k = 2 the PAM's length is (L − tendon)/2 − 2 fittings; the route's tension is n F / 2, which is
+    what virtual work gives (tension · dL = n F · dl_pam); torques are −tension · dL/dq by central
+    differences; the moment arms do not depend on k."""
+    model, route = toy
+    q, _ = model.grid(["angle"], 41, rom=RangeOfMotion({"angle": (-1.2, 1.2)}))
+    direct = _robot(model, Pam(1, "d", (), "angle", (), 20, 2, 0.25, 0.05, route))
+    block = _robot(model, Pam(1, "b", (), "angle", (), 20, 2, 0.25, 0.05, route, transmission=2))
+    s1, s2 = direct.evaluate(q), block.evaluate(q)
+    L = s1.lengths[:, 0]
+    np.testing.assert_array_equal(s2.lengths, s1.lengths)
+    np.testing.assert_allclose(s2.moment_arms, s1.moment_arms, atol=0)
+    np.testing.assert_allclose(s2.pam_lengths[:, 0], (L - 0.05) / 2 - 2 * FIT, atol=1e-15)
+    np.testing.assert_allclose(s2.strain[:, 0], (0.25 - s2.pam_lengths[:, 0]) / 0.25, atol=1e-15)
+    F = festo.force(s2.strain[:, 0], 0.25, 620e3, 20)
+    np.testing.assert_allclose(s2.unit_forces[:, 0], F, rtol=1e-13)
+    np.testing.assert_allclose(s2.forces[:, 0], 2 * F / 2, rtol=1e-13)
+    np.testing.assert_allclose(s1.unit_forces[:, 0] * 2, s1.forces[:, 0], rtol=1e-13)   # k = 1: n F
+    # virtual work and the torque, by central differences of the route and PAM lengths
+    h = 1e-6
+    sp, sm = block.evaluate(q + h), block.evaluate(q - h)
+    dL = (sp.lengths[:, 0] - sm.lengths[:, 0]) / (2 * h)
+    dl = (sp.pam_lengths[:, 0] - sm.pam_lengths[:, 0]) / (2 * h)
+    np.testing.assert_allclose(s2.forces[:, 0] * dL, 2 * s2.unit_forces[:, 0] * dl, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(s2.torques[:, 0, 0], -s2.forces[:, 0] * dL, rtol=1e-6, atol=1e-6)
+    # the block's mass is added to the PAM's (an assumption, festo.transmission_mass)
+    p = block.pams[0]
+    assert pam_unit_mass(p) == pytest.approx(float(festo.pam_mass(0.25, 20) + festo.transmission_mass(0.25, 20, 2)))
+    assert pam_unit_mass(direct.pams[0]) == pytest.approx(float(festo.pam_mass(0.25, 20)))
+    assert float(festo.transmission_mass(0.25, 20, 2)) > 0
+
+
+def test_walking_forces_and_export_follow_the_block(toy):
+    from pamkin.gait import _pam_forces, force_coefficients
+    from pamkin.osim_export import pam_optimal_force
+
+    model, route = toy
+    q, _ = model.grid(["angle"], 11, rom=RangeOfMotion({"angle": (-1.0, 1.0)}))
+    direct = _robot(model, Pam(1, "d", (), "angle", (), 20, 1, 0.25, 0.05, route))
+    block = _robot(model, Pam(1, "b", (), "angle", (), 20, 1, 0.25, 0.05, route, transmission=2))
+    eps = block.evaluate(q).strain
+    np.testing.assert_allclose(_pam_forces(block, eps, 4e5), _pam_forces(direct, eps, 4e5) / 2, rtol=1e-14)
+    np.testing.assert_allclose(_pam_forces(block, eps, 620e3), block.evaluate(q).forces, rtol=1e-12)
+    a1, b1 = force_coefficients(direct, eps)[:2]
+    a2, b2 = force_coefficients(block, eps)[:2]
+    np.testing.assert_allclose(a2, a1 / 2, rtol=1e-12)
+    np.testing.assert_allclose(b2, b1 / 2, rtol=1e-12)
+    assert pam_optimal_force(block.pams[0]) == pytest.approx(pam_optimal_force(direct.pams[0]) / 2)
+
+
+def _fit(model, route, k: int, rom, cfg, target):
+    seed = Pam(1, "toy", (), "angle", (), 10, 1, 0.12, 0.0, route, transmission=k)
+    data = actuator_data(seed, model, rom, cfg, FIT, target=target)
+    pts = [np.array(p.location) for p in seed.points]
+    prob = ActuatorProblem(data, cfg, 10, pts, [np.array(cfg.region(1, p.name)) for p in seed.points])
+    return seed, prob, prob.solve(prob.initial_guess(pts, None, None), 1)
+
+
+def test_optimiser_recovers_a_block_pam_and_agrees_with_the_numpy_pipeline(toy):
+    """The target is a 2:1-block PAM's own torque: the optimiser (lengths free) recovers it, and its CasADi
+    strains and torques equal pamkin.robot's on the saved PAM."""
+    from pamkin.optimize.run import solution_pam
+
+    model, route = toy
+    route = (PathPoint("o", "base", (0.03, 0.10, 0.0)), *route[1:])     # a 0.37 m body-fixed segment
+    rom = RangeOfMotion({"angle": (-0.8, 0.8)})
+    q, _ = model.grid(["angle"], 61, rom=rom)
+    L = _robot(model, Pam(1, "t", (), "angle", (), 10, 1, 0.1, 0.0, route)).evaluate(q).lengths[:, 0]
+    rest = 0.2
+    truth = Pam(1, "truth", (), "angle", (), 10, 1, rest, L.max() - 2 * (rest + 2 * FIT), route, transmission=2)
+    truth_robot = _robot(model, truth)
+    assert truth.tendon_length_m > 0 and truth_robot.evaluate(q).strain.max() < 0.12      # within kmax
+
+    def target(qq):
+        return truth_robot.evaluate(qq).torques[:, 0, :]
+
+    cfg = RunConfig(**FAST_FIT, regularization=0.0, bone_clearance=False, n_primary=31, min_point_distance_m=0.0,
+                    regions={"1": [0.0, 0.0, 0.0]})
+    seed, prob, sol = _fit(model, route, 2, rom, cfg, target)
+    assert sol.success, sol.status
+    assert sol.rest_length == pytest.approx(rest, abs=1e-4)
+    assert sol.tendon_length == pytest.approx(truth.tendon_length_m, abs=2e-4)
+    fitted = _robot(model, solution_pam(seed, prob.finalize(sol)))
+    assert fitted.pams[0].transmission == 2
+    for c, rows, _, _, label in prob.data.objective:
+        tn = fitted.evaluate(prob.data.q[rows]).torques[:, 0, 0]
+        np.testing.assert_allclose(sol.torque_samples[label], tn, atol=1e-9)
+    np.testing.assert_allclose(fitted.evaluate(q).torques[:, 0, 0], truth_robot.evaluate(q).torques[:, 0, 0],
+                               atol=1e-3 * np.abs(target(q)[:, 0]).max())
+    # the held-out limit check measures the same strains as pamkin.robot
+    over = dataclasses.replace(fitted.pams[0], resting_length_m=1.3 * fitted.pams[0].resting_length_m)
+    excess = limit_excess(over, model, q, cfg, FIT)
+    eps = _robot(model, over).evaluate(q).strain[:, 0]
+    kmax = float(festo.kmax(over.resting_length_m, 10))
+    name = next(k for k in excess if "kmax" in k)
+    assert excess[name] == pytest.approx(eps.max() - (cfg.kmax_scale * kmax - 0.005), abs=1e-12)
+
+
+def test_block_puts_an_out_of_reach_pam_on_one_segment(toy):
+    """The toy's excursion needs a resting length beyond what its 0.15 m body-fixed segment holds (a 0.128 m one
+    before it, on the same body, makes the route long enough for a block): the
+    one-segment stage names it out of reach with a direct PAM; with the 2:1 block (half the stroke) it is
+    mounted, and pamkin.robot on 201 poses confirms the body on that segment and the strain limits."""
+    from pamkin.optimize.mount import mount_stage, reach_bound
+    from pamkin.optimize.run import solution_pam
+
+    model, route = toy
+    route = (PathPoint("a", "base", (0.13, -0.20, 0.0)), *route)   # 0.128 m more, on the same body
+    rom = RangeOfMotion({"angle": (-0.6, 0.6)})
+    direct = _robot(model, Pam(1, "t", (), "angle", (), 10, 1, 0.1, 0.0, route))
+
+    def target(q):
+        return 0.5 * direct.evaluate(q).torques[:, 0, :]
+
+    cfg = RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 10.0}, regularization=0.0,
+                    bone_clearance=False, n_primary=31, min_point_distance_m=0.0, regions={"1": [0.0, 0.0, 0.0]})
+    L = direct.evaluate(model.grid(["angle"], 201, rom=rom)[0]).lengths[:, 0]
+    need1, most = reach_bound(L, 0.15, 10, cfg, FIT, 1)
+    need2, _ = reach_bound(L, 0.15, 10, cfg, FIT, 2)
+    assert need2 == pytest.approx(need1 / 2) and need2 < most < need1
+    seed1, prob1, sol1 = _fit(model, route, 1, rom, cfg, target)
+    assert sol1.success
+    _, info1 = mount_stage(prob1, sol1, seed1, cfg, model, rom, solution_pam)
+    assert info1["reason"] == "out of reach", info1
+    seed2, prob2, sol2 = _fit(model, route, 2, rom, cfg, target)
+    assert sol2.success
+    mounted, info2 = mount_stage(prob2, sol2, seed2, cfg, model, rom, solution_pam)
+    assert info2["mounted"] and info2["segment"] == "o->v", info2
+    pam = solution_pam(seed2, prob2.finalize(mounted))
+    q, _ = model.grid(["angle"], 201, rom=rom)
+    ev = _robot(model, pam).evaluate(q)
+    room = 0.15 - np.maximum(pam.resting_length_m, ev.pam_lengths[:, 0]) - 2 * FIT
+    assert room.min() >= -1e-6
+    eps = ev.strain[:, 0]
+    assert eps.max() <= min(festo.kmax(pam.resting_length_m, 10), festo.max_contraction(10)) + 1e-6
+    assert eps.min() >= -festo.max_pretension(10) - 1e-6
+    assert ev.unit_forces.max() <= festo.F_MAX_THEORETICAL[10] + 1e-6
+
+
+def test_config_transmission_table(tmp_path):
+    f = tmp_path / "c.toml"
+    f.write_text('[transmission]\n"4" = 2\n')
+    cfg = load_config(f)
+    thesis = load_design("thesis")
+    des = cfg.apply_transmission(thesis)
+    assert des.pam(4).transmission == 2 and des.pam(5) == thesis.pam(5)
+    # the converted seed keeps the PAM's strain at every pose (the same Festo model, half the stroke)
+    p = dataclasses.replace(thesis.pam(12), tendon_length_m=0.1)
+    f.write_text('[transmission]\n"12" = 2\n')
+    one = thesis.replace_pam(p)
+    two = load_config(f).apply_transmission(one)
+    assert two.pam(12).resting_length_m == pytest.approx(p.resting_length_m / 2)
+    q = np.zeros((3, len(PamRobot(one, sides=("r",)).coordinates)))
+    q[:, PamRobot(one, sides=("r",)).coordinates.index("ankle_angle_r")] = [-0.3, 0.0, 0.3]
+    s1 = PamRobot(Design("1", (one.pam(12),)), sides=("r",)).evaluate(q).strain
+    s2 = PamRobot(Design("2", (two.pam(12),)), sides=("r",)).evaluate(q).strain
+    np.testing.assert_allclose(s2, s1, atol=1e-12)
+    f.write_text('[transmission]\n"4" = 2\n')
+    f.write_text('[transmission]\n"4" = 3\n')
+    with pytest.raises(DataFileError, match=r"transmission\.4: must be one of \(1, 2\)"):
+        load_config(f)
+    f.write_text('[transmission]\n"p4" = 2\n')
+    with pytest.raises(DataFileError, match=r"transmission\.p4: keys are actuator ids"):
+        load_config(f)
+    f.write_text('[transmission]\n"99" = 2\n')
+    with pytest.raises(DataFileError, match=r"transmission\.99: names no actuator"):
+        load_config(f).check_design(load_design("thesis"))
+
+
+def test_audit_reports_unit_force_and_block_mass():
+    """The audit's force per PAM is the PAM's own force (twice the route's tension with the block), its
+    mass includes the block, and the row names the transmission."""
+    from pamkin.audit import AuditOptions, audit_design
+
+    pts = (PathPoint("a", "torso", (0.03, -0.05, 0.03)), PathPoint("b", "femur_r", (0.0, -0.05, 0.0)))
+    pam = Pam(27, "Psoas", ("psoas_r",), "hip_flexion_r", (), 20, 1, 0.12, 0.02, pts, transmission=2)
+    des = Design("block", (pam,), rom="robot_thesis")
+    opts = AuditOptions(n_random=60, gait_ik=None, gait_plan=False, n_geometry=10, n_sweep=11, n_grid=5,
+                        segment_step_m=0.02)
+    res = audit_design(des, options=opts)
+    row = res.pams[0]
+    robot = PamRobot(des, sides=("r",))
+    ev = robot.evaluate(res.details["q_rand"])        # no walking trial: the random poses are every sample
+    assert row["transmission"] == 2
+    assert row["peak_force_per_unit_N"] == pytest.approx(ev.unit_forces[:, 0].max(), rel=1e-12)
+    assert row["peak_force_per_unit_N"] == pytest.approx(2 * ev.forces[:, 0].max(), rel=1e-12)
+    assert row["mass_kg"] == pytest.approx(pam_unit_mass(pam))
