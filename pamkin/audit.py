@@ -543,7 +543,9 @@ def _sensitivity(right: PamRobot, human: Model, rom: RangeOfMotion, rows: list[d
         L = res.lengths
         Rm = res.dense_moment_arms(len(right.model.coordinates))[:, :, ci]
         k = pam.transmission
-        strain = (pam.resting_length_m - ((L - pam.tendon_length_m) / k - 2 * des.fitting_length_m)) / pam.resting_length_m
+        pam_len = (L - 2 * des.fitting_length_m - pam.tendon_length_m if k == 1
+                   else (L - pam.tendon_length_m) / k - 2 * des.fitting_length_m)
+        strain = (pam.resting_length_m - pam_len) / pam.resting_length_m
         F = festo.force(strain, pam.resting_length_m, des.pressure_Pa, pam.diameter_mm, model=des.force_model)
         tau = F * pam.n_parallel / k * Rm                  # (S, variants)
         worst, where = 0.0, None

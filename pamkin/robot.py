@@ -100,7 +100,9 @@ class PamRobot:
         st = self.model.kinematics.forward(q)
         res = self.paths.evaluate(st)
         L = res.lengths
-        pam_len = (L - self.tendon) / self.transmission - 2 * self.design.fitting_length_m
+        fit = self.design.fitting_length_m
+        pam_len = np.where(self.transmission == 1, L - 2 * fit - self.tendon,     # (k = 1: as before, to the bit)
+                           (L - self.tendon) / self.transmission - 2 * fit)
         strain = (self.rest - pam_len) / self.rest
         P = self.design.pressure_Pa if pressure is None else pressure
         F = np.zeros_like(L)
