@@ -16,7 +16,7 @@ import warnings
 import numpy as np
 
 from pamkin import festo
-from pamkin.design import Pam
+from pamkin.design import Pam, pam_length
 from pamkin.errors import RangeWarning
 from pamkin.paths import PathSet
 
@@ -67,9 +67,7 @@ def limit_excess(pam: Pam, model, q: np.ndarray, cfg, fitting_length: float) -> 
         warnings.simplefilter("ignore", RangeWarning)
         L = PathSet(kin, ["route"], [pam.points]).evaluate(kin.forward(q, warn_range=False)).lengths[:, 0]
     l0, d = pam.resting_length_m, pam.diameter_mm
-    k = pam.transmission
-    pam_len = L - 2 * fitting_length - pam.tendon_length_m if k == 1 else (L - pam.tendon_length_m) / k - 2 * fitting_length
-    eps = (l0 - pam_len) / l0
+    eps = (l0 - pam_length(L, pam.tendon_length_m, pam.transmission, fitting_length)) / l0
     F = festo.force(eps, l0, cfg.pressure_Pa, d, model=cfg.force_model)
     out = {fam: float(max(np.max(g) - hi, lo - np.min(g)))
            for fam, g, lo, hi in limit_rows(cfg, d, eps, F, float(festo.kmax(l0, d, model=cfg.force_model)))}

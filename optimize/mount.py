@@ -39,7 +39,7 @@ import casadi as ca
 import numpy as np
 
 from pamkin import festo
-from pamkin.design import Pam
+from pamkin.design import Pam, pam_length, tendon_for
 from pamkin.pam_body import body_room, segment_names
 from pamkin.errors import RangeWarning
 from pamkin.paths import PathSet
@@ -62,8 +62,7 @@ def held_out_margin(pam: Pam, model, q: np.ndarray, segment: int, fitting: float
         X, _ = ps.point_positions(state)
         L = ps.evaluate(state, moment_arms=False).lengths[:, 0]
     seg = np.linalg.norm(X[:, segment + 1] - X[:, segment], axis=1)
-    k = pam.transmission
-    pam_len = L - 2 * fitting - pam.tendon_length_m if k == 1 else (L - pam.tendon_length_m) / k - 2 * fitting
+    pam_len = pam_length(L, pam.tendon_length_m, pam.transmission, fitting)
     return float(np.min(body_room(seg, pam.resting_length_m, pam_len, fitting)))
 
 
@@ -176,8 +175,7 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
             if need > most_j:
                 continue
             lt0 = np.array([float(np.clip(min(best.rest_length, most_j), prob.lbx[-2], prob.ubx[-2])), 0.0])
-            top = L.max() - 2 * f - lt0[0] if prob.k == 1 else L.max() - prob.k * (2 * f + lt0[0])
-            lt0[1] = float(np.clip(top, prob.lbx[-1], prob.ubx[-1]))
+            lt0[1] = float(np.clip(tendon_for(L.max(), lt0[0], prob.k, f), prob.lbx[-1], prob.ubx[-1]))
             ms = _MountSolver(prob, int(j), best.z, best.n_parallel)
             extra = 0.0
             sol = None

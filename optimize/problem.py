@@ -28,7 +28,7 @@ import casadi as ca
 import numpy as np
 
 from pamkin import festo
-from pamkin.design import mirror_name
+from pamkin.design import mirror_name, pam_length, tendon_for
 from pamkin.paths import path_length, path_moment_arm, point_velocity
 
 from .bracket import BAND as BRACKET_BAND
@@ -129,8 +129,7 @@ class ActuatorProblem:
         self.L = path_length(X, xp=ca)                            # (1, S)
         #: transmission (pamkin.design): the route moves k times the PAM's stroke at 1/k of its force
         self.k = int(data.pam.transmission)
-        pam_len = (self.L - 2 * data.fitting_length - self.t if self.k == 1       # (k = 1: as before, to the bit)
-                   else (self.L - self.t) / self.k - 2 * data.fitting_length)
+        pam_len = pam_length(self.L, self.t, self.k, data.fitting_length)
         self.strain = (self.l0 - pam_len) / self.l0
         self.unit_force = festo.force(self.strain, self.l0, data.pressure, diameter, model=data.force_model)
         self.force = self.npar * self.unit_force / self.k
@@ -319,8 +318,7 @@ class ActuatorProblem:
             delta = (L.max() - L.min()) / self.k
             rest = max(delta / (0.8 * km), 1e-3)
             rest = min(rest, L.max() / self.k - 2 * self.data.fitting_length - 1e-3)
-            tendon = (L.max() - 2 * self.data.fitting_length - rest if self.k == 1
-                      else L.max() - self.k * (2 * self.data.fitting_length + rest))
+            tendon = tendon_for(L.max(), rest, self.k, self.data.fitting_length)
         rest = float(np.clip(rest, self.lbx[-2], self.ubx[-2]))
         tendon = float(np.clip(tendon, self.lbx[-1], self.ubx[-1]))
         return np.array(z + [rest, tendon])

@@ -47,7 +47,7 @@ import yaml
 from . import festo
 from ._resources import SHARED_DIR, data_file
 from .compare import compare_pam
-from .design import Design, load_design, pam_unit_mass
+from .design import Design, load_design, pam_length, pam_unit_mass
 from .errors import ConfigurationError, DataFileError, RangeWarning
 from .model import Model
 from .osim import ConditionalPathPoint, MovingPathPoint, PathPoint
@@ -543,9 +543,8 @@ def _sensitivity(right: PamRobot, human: Model, rom: RangeOfMotion, rows: list[d
         L = res.lengths
         Rm = res.dense_moment_arms(len(right.model.coordinates))[:, :, ci]
         k = pam.transmission
-        pam_len = (L - 2 * des.fitting_length_m - pam.tendon_length_m if k == 1
-                   else (L - pam.tendon_length_m) / k - 2 * des.fitting_length_m)
-        strain = (pam.resting_length_m - pam_len) / pam.resting_length_m
+        strain = (pam.resting_length_m - pam_length(L, pam.tendon_length_m, k, des.fitting_length_m)) \
+            / pam.resting_length_m
         F = festo.force(strain, pam.resting_length_m, des.pressure_Pa, pam.diameter_mm, model=des.force_model)
         tau = F * pam.n_parallel / k * Rm                  # (S, variants)
         worst, where = 0.0, None

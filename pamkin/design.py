@@ -172,6 +172,24 @@ class Design:
         return out
 
 
+def pam_length(route_length, tendon, transmission: int, fitting_length: float):
+    """Length [m] of a PAM itself (fittings excluded) on a route of length ``route_length`` [m] (numbers,
+    numpy arrays or CasADi expressions alike): (L − tendon)/k − 2·fitting for transmission k; for k = 1
+    written L − 2·fitting − tendon, the form every result before transmissions existed was computed with
+    (the same value; the same rounding, so those runs stay reproducible to the bit)."""
+    if int(transmission) == 1:
+        return route_length - 2 * fitting_length - tendon
+    return (route_length - tendon) / transmission - 2 * fitting_length
+
+
+def tendon_for(route_length, resting_length, transmission: int, fitting_length: float):
+    """The tendon [m] that leaves the PAM at its resting length on a route of length ``route_length`` [m]
+    (the inverse of :func:`pam_length`)."""
+    if int(transmission) == 1:
+        return route_length - 2 * fitting_length - resting_length
+    return route_length - transmission * (2 * fitting_length + resting_length)
+
+
 def pam_unit_mass(pam: Pam) -> float:
     """Estimated mass [kg] of one of a PAM's parallel units: the PAM with its fittings
     (:func:`pamkin.festo.pam_mass`) and its transmission (:func:`pamkin.festo.transmission_mass`);

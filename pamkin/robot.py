@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from . import festo
-from .design import Design, Pam, load_design, mirror_name, mirror_point
+from .design import Design, Pam, load_design, mirror_name, mirror_point, pam_length
 from .kinematics import ConfigLike
 from .model import Model
 from .paths import PathSet
@@ -100,9 +100,10 @@ class PamRobot:
         st = self.model.kinematics.forward(q)
         res = self.paths.evaluate(st)
         L = res.lengths
-        fit = self.design.fitting_length_m
-        pam_len = np.where(self.transmission == 1, L - 2 * fit - self.tendon,     # (k = 1: as before, to the bit)
-                           (L - self.tendon) / self.transmission - 2 * fit)
+        pam_len = np.empty_like(L)
+        for k in np.unique(self.transmission):
+            cols = self.transmission == k
+            pam_len[:, cols] = pam_length(L[:, cols], self.tendon[cols], int(k), self.design.fitting_length_m)
         strain = (self.rest - pam_len) / self.rest
         P = self.design.pressure_Pa if pressure is None else pressure
         F = np.zeros_like(L)

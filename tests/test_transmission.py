@@ -40,6 +40,17 @@ def _robot(model, pam: Pam) -> PamRobot:
     return PamRobot(Design("t", (pam,)), model, sides=("r",))
 
 
+def test_pam_length_and_tendon_are_inverse():
+    from pamkin.design import pam_length, tendon_for
+
+    L = np.linspace(0.3, 0.9, 7)
+    for k in (1, 2):
+        t = tendon_for(L, 0.2, k, FIT)
+        np.testing.assert_allclose(pam_length(L, t, k, FIT), 0.2, atol=1e-15)
+        np.testing.assert_allclose(k * (pam_length(L, 0.05, k, FIT) + 2 * FIT) + 0.05, L, atol=1e-15)
+    assert pam_length(0.5, 0.1, 1, FIT) == 0.5 - 2 * FIT - 0.1         # the k = 1 form, to the bit
+
+
 def test_design_file_round_trip_and_bad_values(tmp_path):
     des = load_design("thesis")
     p4 = dataclasses.replace(des.pam(4), transmission=2)
