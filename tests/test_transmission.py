@@ -234,6 +234,14 @@ def test_config_transmission_table(tmp_path):
         load_config(f).check_design(load_design("thesis"))
 
 
+def test_example_config_loads_and_fits_the_default_seed():
+    cfg = load_config(Path(__file__).resolve().parents[1] / "examples" / "pulley_blocks.toml")
+    seed = load_design(cfg.design)
+    cfg.check_design(seed)
+    des = cfg.apply_transmission(seed)
+    assert [p.id for p in des.pams if p.transmission == 2] == [5, 24]
+
+
 def test_audit_reports_unit_force_and_block_mass():
     """The audit's force per PAM is the PAM's own force (twice the route's tension with the block), its
     mass includes the block, and the row names the transmission."""
