@@ -580,11 +580,14 @@ def _header(title: str, scale: ColorScale, layout: str, robot, dead: list[str], 
         keys = sorted({n.rsplit("_", 1)[0] for n in names})
         return ", ".join(keys[:10]) + (" ..." if len(keys) > 10 else "")
 
+    blocks = [robot.names[k] for k in range(len(robot.names)) if robot.transmission[k] != 1]
     flags = []
     if dead:
         flags.append(f"in a dead zone{' during the sweep' if sweep else ''}: {short(dead)}")
     if negative:
         flags.append(f"PAM longer than its route (negative tendon), drawn clipped: {short(negative)}")
+    if blocks:
+        flags.append(f"on a 2:1 pulley block (the PAM drawn at its own length, half the route's stroke): {short(blocks)}")
     if sweep:
         flags.append(f"animation: {sweep} over range of motion {robot.design.rom} ('Open Controls' to pause or scrub)")
     lines = [

@@ -206,6 +206,21 @@ def test_view_page_is_self_contained_and_animated(human, robot):
     assert np.allclose(view.frames[:, k], np.radians([-120, -87.5, -55, -22.5, 10, -22.5, -55, -87.5]))
 
 
+def test_view_names_pams_on_a_pulley_block(human, robot):
+    """A PAM on a 2:1 block is drawn at its own length ((route − tendon)/2 − fittings) and named in the header."""
+    import dataclasses
+
+    from pamkin.design import Design
+    from pamkin.robot import PamRobot
+
+    des = robot.design.replace_pam(dataclasses.replace(robot.design.pam(5), transmission=2))
+    blocked = PamRobot(Design(des.name, des.pams, des.pressure_Pa, des.force_model, des.fitting_length_m, des.rom),
+                       robot.model)
+    html = build_view(human, blocked).html()
+    assert "on a 2:1 pulley block" in html and "pam05" in html.split("on a 2:1 pulley block")[1][:200]
+    assert "on a 2:1 pulley block" not in build_view(human, robot).html()
+
+
 def test_view_bad_input(human, robot, tmp_path, capsys):
     with pytest.raises(ConfigurationError, match="layout"):
         build_view(human, robot, layout="stacked")
