@@ -474,9 +474,10 @@ class PamGaitResult:
         saturated_fraction: Frames at P_max.
         dead_zone_fraction: Frames with the strain outside [−max_pretension, kmax].
         slack_fraction: Frames where the PAM pulls nothing.
-        peak_force_N: Largest force [N].
+        peak_force_N: Largest force on the route [N] (the PAMs' force ÷ transmission).
         air_per_stride_NL: Supply air per stride [normal litres] (module docstring).
         volume_range_L: (min, max) inner volume of all its parallel PAMs [L].
+        transmission: 1, or 2 for a PAM on a 2:1 pulley block (:mod:`pamkin.design`).
     """
 
     name: str
@@ -493,6 +494,7 @@ class PamGaitResult:
     peak_force_N: float
     air_per_stride_NL: float
     volume_range_L: tuple[float, float]
+    transmission: int = 1
 
     def to_dict(self) -> dict:
         return {"id": self.id, "name": self.label, "side": self.side, "diameter_mm": self.diameter_mm,
@@ -500,7 +502,7 @@ class PamGaitResult:
                 "mean_pressure_kPa": self.mean_pressure_kPa, "saturated_fraction": self.saturated_fraction,
                 "dead_zone_fraction": self.dead_zone_fraction, "slack_fraction": self.slack_fraction,
                 "peak_force_N": self.peak_force_N, "air_per_stride_NL": self.air_per_stride_NL,
-                "volume_range_L": list(self.volume_range_L)}
+                "volume_range_L": list(self.volume_range_L), "transmission": self.transmission}
 
 
 @dataclass(frozen=True)
@@ -674,7 +676,7 @@ def evaluate_plan(robot: PamRobot, trial: GaitTrial, p_max: float = P_MAX_DEFAUL
             int(robot.n_parallel[k]), float(P[:, k].max() / 1e3),
             float(P[:, k].mean() / 1e3), float(np.mean(P[:, k] >= p_max * (1 - 1e-6))),
             float(np.mean(~st.in_range[:, k])), float(np.mean(F[:, k] <= 0)), float(F[:, k].max()),
-            float(air[k]), (float(vol[:, k].min() * 1e3), float(vol[:, k].max() * 1e3))))
+            float(air[k]), (float(vol[:, k].min() * 1e3), float(vol[:, k].max() * 1e3)), int(robot.transmission[k])))
     total = _time.perf_counter() - t_start
     return GaitPlan(robot.design.name, robot.design.path, trial, float(p_max), float(tolerance), solver,
                     tuple(robot.names), P, F, M, st.strain, st.in_range, vol, tuple(coords), tuple(pams),

@@ -75,10 +75,11 @@ def cmd_gait(args: argparse.Namespace) -> int:
               ", ".join(f"{k} {v}" for k, v in s["frames_outside_robot_rom"].items()))
     if s["effort_fallback_frames"]:
         print(f"Effort QP fell back to the residual solution at {s['effort_fallback_frames']} frame(s)")
-    print(f"\n{'PAM':8s} {'name':26s} {'d×n':>5} {'peak kPa':>8} {'mean kPa':>8} {'sat %':>6} {'dead %':>6} "
+    print(f"\n{'PAM':8s} {'name':26s} {'d×n':>7} {'peak kPa':>8} {'mean kPa':>8} {'sat %':>6} {'dead %':>6} "
           f"{'slack %':>7} {'air NL':>7}")
     for p in plan.pam_results:
-        print(f"{p.name:8s} {p.label[:26]:26s} {p.diameter_mm:>2}×{p.n_parallel} {p.peak_pressure_kPa:8.0f} "
+        dn = f"{p.diameter_mm}×{p.n_parallel}" + (f"/{p.transmission}" if p.transmission != 1 else "")
+        print(f"{p.name:8s} {p.label[:26]:26s} {dn:>7} {p.peak_pressure_kPa:8.0f} "
               f"{p.mean_pressure_kPa:8.0f} {100 * p.saturated_fraction:6.0f} {100 * p.dead_zone_fraction:6.0f} "
               f"{100 * p.slack_fraction:7.0f} {p.air_per_stride_NL:7.2f}")
     print(f"\nSolved in {s['timings_s']['solve']:.2f} s ({plan.solver}); total {s['timings_s']['total']:.2f} s")
