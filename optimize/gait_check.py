@@ -166,7 +166,10 @@ def walking_pass(design: Design, results: list, data: list, cfg, budget: int, sk
         best = None
         for _, pid, (d, n) in ranked:       # in rank order; the first swap that reaches the target ends the step
             i = index[pid]
-            out = resize(data[i], cfg, results[i].z, d, n, model, rom)
+            k = results[i].pam.transmission      # a PAM the one-segment stage put on a block keeps it
+            di = data[i] if k == data[i].pam.transmission else \
+                dataclasses.replace(data[i], pam=dataclasses.replace(data[i].pam, transmission=k))
+            out = resize(di, cfg, results[i].z, d, n, model, rom)
             if out is not None:
                 r = _resized(results[i], *out)
             elif resolve is not None:

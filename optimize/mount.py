@@ -231,6 +231,63 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
 
 
 
+#: Transmission :func:`mount_block` tries for a PAM out of reach of one segment at 1:1 (a 2:1 pulley block).
+BLOCK = 2
+
+
+def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam) -> tuple[object, object, dict]:
+    """A PAM out of reach of one straight segment of its fixed route (``info`` from :func:`mount_stage`)
+    with a 2:1 pulley block instead (``[limits] mount_blocks``): the same route and parallel count, the same
+    or a larger diameter, resting length and tendon solved again with the PAM on one segment — half the
+    stroke at half the force on the route (:mod:`pamkin.design`, transmission) — by :func:`mount_stage`
+    under its rule against the direct PAM's objective (root + <= ``mount_cost``; strain, force and segment
+    re-checked on the held-out poses). Of the diameters that pass, the least objective + mass penalty
+    (the block's assumed mass included) is kept. The route, so its bone clearance, and the PAM units do
+    not change.
+
+    Returns:
+        ``(solution, problem, info)``: the block's, or ``best``, ``prob`` and ``info`` unchanged (``info``
+        then says what was tried).
+    """
+    import dataclasses  # noqa: PLC0415
+
+    from .problem import ActuatorProblem  # noqa: PLC0415
+
+    if not (cfg.mount_blocks and info.get("reason") == "out of reach" and prob.k == 1 and best.success):
+        return best, prob, info
+
+    def mass_penalty(d: int, rest: float, k: int) -> float:
+        return cfg.weight_mass * 2 * best.n_parallel * float(festo.pam_mass(rest, d) + festo.transmission_mass(rest, d, k))
+
+    direct = float(best.objective) + mass_penalty(best.diameter_mm, best.rest_length, 1)
+    found, tried = None, []
+    for d in [d for d in cfg.diameters_mm if d >= prob.d]:
+        pk = dataclasses.replace(pam, transmission=BLOCK, diameter_mm=d)
+        p2 = ActuatorProblem(dataclasses.replace(prob.data, pam=pk), cfg, d, prob.seed, prob.regions, prob.relax,
+                             prob.bracket or None)
+        start = dataclasses.replace(p2.evaluate(best.z, best.n_parallel), objective=best.objective,
+                                    rest_length=best.rest_length / BLOCK)
+        sol, out = mount_stage(p2, start, pk, cfg, model, rom, solution_pam)
+        tried.append(f"{d} mm: {out.get('reason') or 'mounted'}"
+                     + (f" (root +{out['cost']:.3f})" if "cost" in out else ""))
+        if out.get("mounted"):
+            score = float(sol.objective) + mass_penalty(d, sol.rest_length, BLOCK)
+            if found is None or score < found[0]:
+                found = (score, sol, p2, out)
+    if found is None:
+        info = dict(info, block_tried=tried,
+                    line=info["line"] + f"; with a 2:1 pulley block on the same route: {', '.join(tried)}")
+        return best, prob, info
+    score, sol, p2, out = found
+    out = dict(out, transmission=BLOCK, direct=info, block_tried=tried, score_before=direct, score_after=score,
+               line=f"on one straight segment {out['segment']} with a 2:1 pulley block ({sol.diameter_mm} mm x"
+                    f"{sol.n_parallel}; out of reach at 1:1): resting length {best.rest_length:.3f} -> "
+                    f"{sol.rest_length:.3f} m, tendon {max(best.tendon_length, 0.0):.3f} -> "
+                    f"{max(sol.tendon_length, 0.0):.3f} m, objective {best.objective:.4g} -> {sol.objective:.4g}, "
+                    f"with the mass penalty {direct:.4g} -> {score:.4g}")
+    return sol, p2, out
+
+
 #: Mount rounds (:func:`mount_rounds`) are tried where the fixed route's mount failed on fit cost by at most
 #: this multiple of ``mount_cost``, or was out of reach by at most :data:`ROUNDS_REACH` (least resting length
 #: ÷ what the segment holds). The others are not tried: measured on the default run (stop 24), none of the

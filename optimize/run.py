@@ -9,6 +9,7 @@ actuator's solve succeeded.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import multiprocessing as mp
 import os
@@ -374,12 +375,15 @@ def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None):
     (:func:`optimize.mount.mount_rounds`). Returns (solution, its problem, mount info)."""
     if not (cfg.mount and best.success):
         return best, prob, {}
-    from .mount import mount_rounds, mount_stage  # noqa: PLC0415
+    from .mount import mount_block, mount_rounds, mount_stage  # noqa: PLC0415
 
     best, info = mount_stage(prob, best, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam)
-    if info.get("mounted") or cuts is None:
-        return best, prob, info
-    return mount_rounds(prob, best, info, pam, cfg, cuts, _STATE["human"], _STATE["rom"], solution_pam)
+    if not info.get("mounted") and cuts is not None:
+        best, prob, info = mount_rounds(prob, best, info, pam, cfg, cuts, _STATE["human"], _STATE["rom"],
+                                        solution_pam)
+    if not info.get("mounted"):
+        best, prob, info = mount_block(prob, best, info, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam)
+    return best, prob, info
 
 
 def choose_units(results: list[ActuatorResult], budget: int) -> tuple[list, float]:
@@ -439,6 +443,8 @@ def solution_pam(pam: Pam, best) -> Pam:
 def _result(pam: Pam, data, prob, best, attempts: list, t0: float, bone: dict, mount: dict | None = None) -> ActuatorResult:
     """The saved form of an actuator's best solution (tendon clipped at 0, moving points shifted)."""
     best = prob.finalize(best)
+    if prob.k != pam.transmission:        # the one-segment stage put the PAM on a pulley block
+        pam = dataclasses.replace(pam, transmission=prob.k)
     new = solution_pam(pam, best)
     sample_q = {label: data.q[rows] for _, rows, _, _, label in data.objective}
     return ActuatorResult(pam.id, pam.name, new, best.status, best.success, attempts, best.nrmse_samples,
