@@ -204,6 +204,48 @@ def test_block_puts_an_out_of_reach_pam_on_one_segment(toy):
     assert ev.unit_forces.max() <= festo.F_MAX_THEORETICAL[10] + 1e-6
 
 
+def test_one_segment_stage_tries_a_block_on_the_fixed_route(toy):
+    """optimize.mount.mount_block: the direct PAM out of reach of its 0.15 m segment is put on a 2:1 block
+    on the same route (the points unchanged) and checked independently (pamkin.robot, 201 poses); with a
+    mount cost it cannot meet, it is left as it was and the log says what was tried; switched off, not tried."""
+    from pamkin.optimize.mount import mount_block, mount_stage
+    from pamkin.optimize.run import solution_pam
+
+    model, route = toy
+    route = (PathPoint("a", "base", (0.13, -0.20, 0.0)), *route)
+    rom = RangeOfMotion({"angle": (-0.6, 0.6)})
+    direct = _robot(model, Pam(1, "t", (), "angle", (), 10, 1, 0.1, 0.0, route))
+
+    def target(q):
+        return 0.5 * direct.evaluate(q).torques[:, 0, :]
+
+    cfg = RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 10.0}, regularization=0.0, mount_blocks=True,
+                    bone_clearance=False, n_primary=31, min_point_distance_m=0.0, regions={"1": [0.0, 0.0, 0.0]},
+                    diameters_mm=[10, 20])
+    seed, prob, sol = _fit(model, route, 1, rom, cfg, target)
+    _, info = mount_stage(prob, sol, seed, cfg, model, rom, solution_pam)
+    assert info["reason"] == "out of reach"
+    got, p2, out = mount_block(prob, sol, info, seed, cfg, model, rom, solution_pam)
+    assert out["mounted"] and out["transmission"] == 2 and p2.k == 2 and out["segment"] == "o->v", out
+    assert out["line"].startswith("on one straight segment o->v with a 2:1 pulley block")
+    np.testing.assert_allclose(np.array(got.points), np.array(sol.points), atol=0)     # the route is unchanged
+    pam = solution_pam(dataclasses.replace(seed, transmission=2), p2.finalize(got))
+    q, _ = model.grid(["angle"], 201, rom=rom)
+    ev = _robot(model, pam).evaluate(q)
+    assert (0.15 - np.maximum(pam.resting_length_m, ev.pam_lengths[:, 0]) - 2 * FIT).min() >= -1e-6
+    d = pam.diameter_mm
+    assert ev.strain.max() <= min(festo.kmax(pam.resting_length_m, d), festo.max_contraction(d)) + 1e-6
+    assert ev.strain.min() >= -festo.max_pretension(d) - 1e-6
+    assert ev.unit_forces.max() <= festo.F_MAX_THEORETICAL[d] + 1e-6
+    # a mount cost the block cannot meet: the direct PAM stays, and the log names the tries
+    strict = dataclasses.replace(cfg, mount_cost=-10.0)       # (the block fits this target better than direct)
+    kept, p3, out2 = mount_block(prob, sol, info, seed, strict, model, rom, solution_pam)
+    assert kept is sol and p3 is prob and not out2.get("mounted")
+    assert "with a 2:1 pulley block on the same route: 10 mm:" in out2["line"]
+    off = dataclasses.replace(cfg, mount_blocks=False)
+    assert mount_block(prob, sol, info, seed, off, model, rom, solution_pam)[2] is info
+
+
 def test_config_transmission_table(tmp_path):
     f = tmp_path / "c.toml"
     f.write_text('[transmission]\n"4" = 2\n')
