@@ -211,7 +211,7 @@ def test_default_run_on_the_hip_group(tmp_path):
     for k, p in enumerate(design.pams):
         if p.id in cfg.actuators:
             assert st.strain[:, k].max() <= festo.max_contraction(p.diameter_mm) + 0.01, p.name
-            assert st.forces[:, k].max() / p.n_parallel <= festo.F_MAX_THEORETICAL[p.diameter_mm], p.name
+            assert st.unit_forces[:, k].max() <= festo.F_MAX_THEORETICAL[p.diameter_mm], p.name
     bones = BoneSet(skel)
     clear = [p for p in design.pams if p.id in cfg.actuators and s["bone_mesh"][str(p.id)]["clear"]]
     assert len(clear) >= 2, s["bone_mesh_not_clear"]      # measured: iliacus and psoas (24, 25, 28, 29 named)
