@@ -322,6 +322,13 @@ class RunConfig:
             design = design.replace_pam(p)
         return design
 
+    def mass_penalty(self, diameter_mm: int, n_parallel: int, resting_length: float, transmission: int = 1) -> float:
+        """The objective's mass penalty of ``n_parallel`` PAMs of a diameter, resting length [m] and
+        transmission, both sides: ``weight_mass`` × their estimated mass [kg] (:func:`pamkin.design.unit_mass`)."""
+        from pamkin.design import unit_mass  # noqa: PLC0415
+
+        return self.weight_mass * 2 * n_parallel * unit_mass(resting_length, diameter_mm, transmission)
+
     def one_segment_for(self, actuator: int) -> bool:
         """Whether actuator ``actuator`` is solved with the one-segment rows (``one_segment`` or listed)."""
         return bool(self.one_segment or actuator in self.one_segment_actuators)

@@ -256,10 +256,7 @@ def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam)
     if not (cfg.mount_blocks and info.get("reason") == "out of reach" and prob.k == 1 and best.success):
         return best, prob, info
 
-    def mass_penalty(d: int, rest: float, k: int) -> float:
-        return cfg.weight_mass * 2 * best.n_parallel * float(festo.pam_mass(rest, d) + festo.transmission_mass(rest, d, k))
-
-    direct = float(best.objective) + mass_penalty(best.diameter_mm, best.rest_length, 1)
+    direct = float(best.objective) + cfg.mass_penalty(best.diameter_mm, best.n_parallel, best.rest_length, 1)
     found, tried = None, []
     for d in [d for d in cfg.diameters_mm if d >= prob.d]:
         pk = dataclasses.replace(pam, transmission=BLOCK, diameter_mm=d)
@@ -271,7 +268,7 @@ def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam)
         tried.append(f"{d} mm: {out.get('reason') or 'mounted'}"
                      + (f" (root +{out['cost']:.3f})" if "cost" in out else ""))
         if out.get("mounted"):
-            score = float(sol.objective) + mass_penalty(d, sol.rest_length, BLOCK)
+            score = float(sol.objective) + cfg.mass_penalty(d, best.n_parallel, sol.rest_length, BLOCK)
             if found is None or score < found[0]:
                 found = (score, sol, p2, out)
     if found is None:

@@ -106,7 +106,7 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
 
     def mass_penalty(d: int, n: int, rest: float) -> float:
         """The objective's mass penalty of n PAMs of diameter d and resting length ``rest`` (both sides)."""
-        return cfg.weight_mass * 2 * n * float(festo.pam_mass(rest, d) + festo.transmission_mass(rest, d, pam.transmission))
+        return cfg.mass_penalty(d, n, rest, pam.transmission)
 
     def score(sol) -> float:
         """Objective plus the mass penalty of the PAMs on the route."""

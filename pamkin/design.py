@@ -190,14 +190,19 @@ def tendon_for(route_length, resting_length, transmission: int, fitting_length: 
     return route_length - transmission * (2 * fitting_length + resting_length)
 
 
-def pam_unit_mass(pam: Pam) -> float:
-    """Estimated mass [kg] of one of a PAM's parallel units: the PAM with its fittings
-    (:func:`pamkin.festo.pam_mass`) and its transmission (:func:`pamkin.festo.transmission_mass`);
-    both assumptions, for bulk comparisons."""
+def unit_mass(resting_length: float, diameter_mm: int, transmission: int = 1) -> float:
+    """Estimated mass [kg] of one parallel PAM unit of resting length [m] and diameter: the PAM with its
+    fittings (:func:`pamkin.festo.pam_mass`) and its transmission (:func:`pamkin.festo.transmission_mass`);
+    both assumptions, for bulk comparisons (the audit) and the optimiser's mass penalty."""
     from . import festo  # noqa: PLC0415
 
-    return float(festo.pam_mass(pam.resting_length_m, pam.diameter_mm)
-                 + festo.transmission_mass(pam.resting_length_m, pam.diameter_mm, pam.transmission))
+    return float(festo.pam_mass(resting_length, diameter_mm)
+                 + festo.transmission_mass(resting_length, diameter_mm, transmission))
+
+
+def pam_unit_mass(pam: Pam) -> float:
+    """:func:`unit_mass` of one of a PAM's parallel units [kg]."""
+    return unit_mass(pam.resting_length_m, pam.diameter_mm, pam.transmission)
 
 
 def _fail(path: str, msg: str) -> DataFileError:
