@@ -803,7 +803,10 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
            f"workers {cfg.workers}, multistart {cfg.multistart}, diameters {cfg.diameters_mm}, "
            f"max_parallel {cfg.max_parallel}, force model {cfg.force_model}, pressure {cfg.pressure_Pa:.0f} Pa"]
     _STATE["walking"] = None
-    results = solve_all(seed, cfg, stream)
+    try:
+        results = solve_all(seed, cfg, stream)
+    finally:
+        _STATE["warm_ids"] = set()     # a later solve_all in this process (library use) starts cold
     log.extend((_STATE["walking"] or {}).get("log", []))
     if cfg.bone_mesh and cfg.pam_clearance:
         results = clearance_pass(seed, results, cfg, stream)
