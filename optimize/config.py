@@ -79,6 +79,11 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      this fraction, actuators at the pressure limit get another diameter /
                                  #      parallel count within the budget, solved again (0: off;
                                  #      optimize.gait_check)
+    resize_above = 1.0           # (v2, with bone_mesh and max_units) after the bone rounds: an actuator whose fit
+                                 #      objective is still above this gets its other diameters (same parallel
+                                 #      count: the unit budget holds) through the bone rounds and the one-segment
+                                 #      stage too, where their fit before the rounds scored less; the lower
+                                 #      score after the rounds is kept (0: off)
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
     [transmission]               # per actuator: "4" = 2 puts a 2:1 pulley block on its PAM (pamkin.design:
@@ -109,7 +114,7 @@ _SECTIONS = {
                "one_segment": "one_segment", "one_segment_actuators": "one_segment_actuators", "mount": "mount", "mount_cost": "mount_cost", "mount_blocks": "mount_blocks", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
                "bone_seed_start": "bone_seed_start", "bracket_fit": "bracket_fit",
                "max_units": "max_units", "walking_min": "walking_min",
-               "pam_clearance": "pam_clearance"},
+               "pam_clearance": "pam_clearance", "resize_above": "resize_above"},
 }
 
 
@@ -179,6 +184,7 @@ class RunConfig:
     pam_clearance: bool = False
     max_units: int = 60
     walking_min: float = 0.9
+    resize_above: float = 1.0
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     transmission: dict[str, int] = field(default_factory=dict)
     source: str = ""
@@ -231,7 +237,7 @@ class RunConfig:
         for name in ("multistart", "seed", "multistart_threshold", "weight_primary", "weight_secondary",
                      "regularization", "region_m", "min_point_distance_m", "pretension_scale",
                      "weight_whole_vector", "weight_mass", "n_random", "max_solve_seconds", "sensitivity_pct",
-                     "mount_cost"):
+                     "mount_cost", "resize_above"):
             if getattr(self, name) < 0:
                 raise bad(_KEYS[name], f"must be >= 0, got {getattr(self, name)}")
         if self.weight_primary + self.weight_secondary <= 0:

@@ -56,6 +56,7 @@ class ActuatorResult:
     candidates: dict = field(default_factory=dict, repr=False)
     mount: dict = field(default_factory=dict)            # one-segment stage (optimize.mount)
     skipped: list[str] = field(default_factory=list)     # diameter / count tries left out as dominated
+    objective: float | None = None                       # the saved solution's fit objective (NRMSE²-like)
 
 
 # worker state (fork): set before the pool starts
@@ -449,7 +450,8 @@ def _result(pam: Pam, data, prob, best, attempts: list, t0: float, bone: dict, m
     sample_q = {label: data.q[rows] for _, rows, _, _, label in data.objective}
     return ActuatorResult(pam.id, pam.name, new, best.status, best.success, attempts, best.nrmse_samples,
                           best.torque_samples, sample_q, best.violations, time.perf_counter() - t0,
-                          sorted(prob.relax), bone, best.z.copy(), best.n_parallel, mount=mount or {})
+                          sorted(prob.relax), bone, best.z.copy(), best.n_parallel, mount=mount or {},
+                          objective=float(best.objective))
 
 
 def _bone_info(cuts, before, measure, info, lines, names) -> dict:
@@ -664,9 +666,82 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
           file=stream, flush=True)
     _STATE.update(fit_only=False, first=dict(enumerate(results)), choice=dict(enumerate(choice)))
     results = sorted(_map(_finish_actuator, list(range(len(results))), cfg, stream), key=lambda r: order[r.id])
+    if cfg.bone_mesh and cfg.resize_above > 0:
+        results = resize_pass(results, cfg, stream)
     if cfg.walking_min > 0:
         results = _walking_pass(seed_design, results, cfg.max_units // 2, cfg, stream)   # units of a whole side
     return results
+
+
+def _size(p: Pam) -> str:
+    """``20 mm x1`` (``on a 2:1 pulley block`` where it is on one)."""
+    return f"{p.diameter_mm} mm x{p.n_parallel}" + (f" on a {p.transmission}:1 pulley block" if p.transmission > 1 else "")
+
+
+#: ``start`` of the attempt :func:`resize_pass` adds to an actuator's attempts.
+BONE_RESIZE_START = "resize after the bone rounds"
+
+
+def resize_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr) -> list[ActuatorResult]:
+    """Choose the diameter again on the fit the bone meshes leave (after :func:`_finish_actuator`).
+
+    The unit budget chooses every diameter on the first phase's fits, made without the bone meshes; the bone
+    rounds then raise some fits many times, and not alike for every diameter (sartorius: 20 mm fitted best
+    before them, 10 mm after). An actuator whose saved objective is above ``cfg.resize_above`` gets its other
+    first-phase candidates with the same parallel count (so the unit budget still holds) through the bone
+    rounds and the one-segment stage (:func:`_finish_choice`, in the workers), where the candidate's score
+    before the rounds (objective + mass penalty) was below the actuator's score after them. Kept: the result
+    clear of bone, then with the lower score (objective + mass penalty), the present one on ties. The
+    actuator's bone log gets one line per try."""
+    first: dict = _STATE["first"]
+
+    def score(r: ActuatorResult) -> float:
+        p = r.pam
+        return float(r.objective) + cfg.mass_penalty(p.diameter_mm, p.n_parallel, p.resting_length_m,
+                                                      p.transmission)
+
+    tasks = []
+    for k, r in enumerate(results):
+        if not (r.success and r.objective is not None and r.objective > cfg.resize_above):
+            continue
+        now = score(r)
+        for key, (pre, _, _) in sorted(first[k].candidates.items()):
+            if key[1] == r.n_parallel and key[0] != r.pam.diameter_mm and pre < now:
+                tasks.append((k, key, None))
+    if not tasks:
+        return results
+    print(f"resize after the bone rounds: {len(tasks)} other diameter(s) of "
+          f"{len({t[0] for t in tasks})} actuator(s) with fit objective > {cfg.resize_above:g}",
+          file=stream, flush=True)
+    tried = sorted(_map(_finish_choice, tasks, cfg, stream), key=lambda a: (a.id, a.attempts[-1]["diameter_mm"]))
+    out = list(results)
+    for k in sorted({t[0] for t in tasks}):
+        r = results[k]
+        lines = []
+        best, best_key = r, (not r.bone.get("clear", True), score(r))
+        for alt in tried:
+            if alt.id != r.id:
+                continue
+            what = f"  resize: {alt.attempts[-1]['diameter_mm']} mm x{alt.n_parallel}"
+            if not alt.success or alt.objective is None:
+                lines.append(f"{what}: {alt.status} (not kept)")
+                continue
+            key = (not alt.bone.get("clear", True), score(alt))
+            lines.append(f"{what} -> {_size(alt.pam)}: objective {alt.objective:.4g}, score {key[1]:.4g}"
+                         f"{', not clear of bone' if key[0] else ''} (now {_size(r.pam)}: objective "
+                         f"{r.objective:.4g}, score {score(r):.4g})")
+            if key < best_key:
+                best, best_key = alt, key
+        if best is not r:
+            best.attempts[-1]["start"] = BONE_RESIZE_START
+            lines.append(f"  resize: kept the {best.attempts[-1]['diameter_mm']} mm try: {_size(best.pam)} "
+                         f"(was {_size(r.pam)})")
+        else:
+            lines.append(f"  resize: kept {_size(r.pam)}")
+        for line in lines:
+            print(f"actuator {r.id} {r.name}:{line[1:]}", file=stream, flush=True)
+        out[k] = dataclasses.replace(best, bone=dict(best.bone, log=list(best.bone.get("log", [])) + lines))
+    return out
 
 
 def _walking_pass(seed_design: Design, results: list[ActuatorResult], budget: int, cfg: RunConfig,

@@ -3,7 +3,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import io
 import json
 from pathlib import Path
 
@@ -152,6 +154,7 @@ def test_apply_and_warm_start(tmp_path, monkeypatch):
     ("[limits]\none_segment_actuators = 13\n", "limits.one_segment_actuators: must be a list of integers"),
     ("[limits]\nmount_cost = -0.1\n", "limits.mount_cost: must be >= 0"),
     ("[limits]\nmount = \"yes\"\n", "limits.mount: must be true or false"),
+    ("[limits]\nresize_above = -1\n", "limits.resize_above: must be >= 0"),
 ])
 def test_bad_config(tmp_path, text, match):
     f = tmp_path / "run.toml"
@@ -401,8 +404,6 @@ def test_unit_budget_config_errors(tmp_path):
 
 def test_example_configs_are_the_default_and_the_fast_fit():
     """examples/optimize_v2.toml spells out the defaults; examples/optimize_fast.toml is FAST_FIT."""
-    import dataclasses
-
     root = Path(__file__).resolve().parents[1] / "examples"
     for path, expected in ((root / "optimize_v2.toml", RunConfig()), (root / "optimize_fast.toml", RunConfig(**FAST_FIT))):
         cfg = load_config(path)
@@ -872,3 +873,55 @@ def test_mount_stage_names_a_pam_out_of_reach_with_its_numbers():
     assert info["least_rest_m"] == pytest.approx((L.max() - L.min()) / (c + festo.max_pretension(10)), rel=1e-6)
     assert info["least_rest_m"] > most
     assert f"{info['least_rest_m']:.3f} m" in info["line"]
+
+
+def test_resize_pass_chooses_the_diameter_on_the_fit_after_the_bone_rounds(monkeypatch):
+    """optimize.run.resize_pass: an actuator whose saved (after the bone rounds) objective is above
+    ``resize_above`` gets its other same-count candidates through the rounds (the workers' function) where
+    their score before the rounds was lower than its score after them; the lower score after the rounds
+    is kept, a result clear of bone before one that is not; nothing else is touched."""
+    cfg = RunConfig(workers=1, resize_above=1.0)
+
+    def solved(aid: int, d: int, objective: float, clear: bool = True, success: bool = True):
+        r = _fake_result(aid, {})
+        r.pam = dataclasses.replace(r.pam, diameter_mm=d, n_parallel=1)
+        r.objective, r.success = objective, success
+        r.bone = {"clear": clear, "log": ["  bone round 1: ..."]}
+        r.attempts = [{"start": "unit budget choice", "diameter_mm": d}]
+        return r
+
+    def score(r):
+        return r.objective + cfg.mass_penalty(r.pam.diameter_mm, 1, r.pam.resting_length_m)
+
+    after = {(6, 10): solved(6, 10, 4.6), (9, 10): solved(9, 10, 0.5, clear=False),
+             (9, 40): solved(9, 40, 2.2), (4, 40): solved(4, 40, 0.2, success=False)}
+    now = [solved(6, 20, 6.5), solved(9, 20, 1.5), solved(4, 20, 1.6), solved(5, 40, 0.9)]
+    first = {0: _fake_result(6, {(10, 1): 0.7, (20, 1): 0.05, (40, 2): 0.1, (40, 1): 9.0}),
+             1: _fake_result(9, {(10, 1): 0.8, (20, 1): 0.1, (40, 1): 1.0}),
+             2: _fake_result(4, {(20, 1): 0.07, (40, 1): 0.4}),
+             3: _fake_result(5, {(40, 1): 0.02, (20, 1): 0.08})}
+    monkeypatch.setitem(run_mod._STATE, "first", first)
+    calls = []
+
+    def finish(task):
+        k, key, z = task
+        calls.append((first[k].id, key))
+        return dataclasses.replace(after[(first[k].id, key[0])])
+
+    monkeypatch.setattr(run_mod, "_finish_choice", finish)
+    out = run_mod.resize_pass(now, cfg, io.StringIO())
+    # tried: the same count only, only where the score before the rounds beats the score after them
+    # (sartorius 40 mm scored 9 > 6.5: not tried; semimembranosus' 0.9 is below resize_above)
+    assert sorted(calls) == [(4, (40, 1)), (6, (10, 1)), (9, (10, 1)), (9, (40, 1))]
+    assert score(after[(6, 10)]) < score(now[0])
+    assert out[0].pam.diameter_mm == 10 and out[0].attempts[-1]["start"] == run_mod.BONE_RESIZE_START
+    assert "  resize: kept the 10 mm try: 10 mm x1 (was 20 mm x1)" in out[0].bone["log"]
+    # gracilis: 10 mm fits better but is not clear of bone, 40 mm scores more: 20 mm stays
+    assert out[1].pam.diameter_mm == 20 and out[1] is not now[1] and out[1].objective == 1.5
+    assert out[1].bone["log"][-1] == "  resize: kept 20 mm x1" and "not clear of bone" in out[1].bone["log"][-3]
+    assert out[2].pam.diameter_mm == 20 and "(not kept)" in out[2].bone["log"][-2]
+    assert out[3] is now[3]
+    # off: nothing tried
+    calls.clear()
+    assert run_mod.resize_pass(now, dataclasses.replace(cfg, resize_above=10.0), io.StringIO()) == now
+    assert calls == []
