@@ -56,7 +56,7 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      where the root of the fit objective grows by at most mount_cost; where
                                  #      it narrowly cannot, bone rounds with the PAM on the segment and the points
                                  #      free; elsewhere the run names the PAM and why (optimize.mount)
-    mount_blocks = true          # (v2, with mount) a PAM out of reach of one segment at 1:1 is tried on a 2:1
+    mount_blocks = true          # (v2, with mount) a PAM out of reach of one segment at 1:1, or infeasible there, is tried on a 2:1
                                  #      pulley block on the same route (same count, same or larger diameter;
                                  #      the same mount_cost rule; optimize.mount.mount_block)
     sensitivity_pct = 9.0        # (v2) a 1 mm error of a fixed attachment point changes the primary torque

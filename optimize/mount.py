@@ -235,9 +235,16 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
 BLOCK = 2
 
 
+#: Why the one-segment stage left a PAM spanning its route (``info["reason"]``) where :func:`mount_block` tries a
+#: 2:1 block: out of reach (its stroke needs a longer PAM than any segment holds) and infeasible (no length
+#: keeps the strain, force or sensitivity limits on the segment: mostly the contraction, which half the stroke
+#: eases). Not "fit cost" (the PAM fits at 1:1 but its torques get worse).
+BLOCK_REASONS = ("out of reach", "infeasible")
+
+
 def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam) -> tuple[object, object, dict]:
-    """A PAM out of reach of one straight segment of its fixed route (``info`` from :func:`mount_stage`)
-    with a 2:1 pulley block instead (``[limits] mount_blocks``): the same route and parallel count, the same
+    """A PAM out of reach of one straight segment of its fixed route, or infeasible there (``info`` from
+    :func:`mount_stage`, :data:`BLOCK_REASONS`), with a 2:1 pulley block instead (``[limits] mount_blocks``): the same route and parallel count, the same
     or a larger diameter, resting length and tendon solved again with the PAM on one segment — half the
     stroke at half the force on the route (:mod:`pamkin.design`, transmission) — by :func:`mount_stage`
     under its rule against the direct PAM's objective (root + <= ``mount_cost``; strain, force and segment
@@ -253,7 +260,7 @@ def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam)
 
     from .problem import ActuatorProblem  # noqa: PLC0415
 
-    if not (cfg.mount_blocks and info.get("reason") == "out of reach" and prob.k == 1 and best.success):
+    if not (cfg.mount_blocks and info.get("reason") in BLOCK_REASONS and prob.k == 1 and best.success):
         return best, prob, info
 
     direct = float(best.objective) + cfg.mass_penalty(best.diameter_mm, best.n_parallel, best.rest_length, 1)
@@ -278,7 +285,7 @@ def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam)
     score, sol, p2, out = found
     out = dict(out, transmission=BLOCK, direct=info, block_tried=tried, score_before=direct, score_after=score,
                line=f"on one straight segment {out['segment']} with a 2:1 pulley block ({sol.diameter_mm} mm x"
-                    f"{sol.n_parallel}; out of reach at 1:1): resting length {best.rest_length:.3f} -> "
+                    f"{sol.n_parallel}; {info['reason']} at 1:1): resting length {best.rest_length:.3f} -> "
                     f"{sol.rest_length:.3f} m, tendon {max(best.tendon_length, 0.0):.3f} -> "
                     f"{max(sol.tendon_length, 0.0):.3f} m, objective {best.objective:.4g} -> {sol.objective:.4g}, "
                     f"with the mass penalty {direct:.4g} -> {score:.4g}")

@@ -45,7 +45,7 @@ def pam_bodies(design, model, q: np.ndarray) -> list[Body]:
         seg_len = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=2)
         pam_len = st.pam_lengths[:, k]
         j, _ = mount_segment(body_room(seg_len, pam.resting_length_m, pam_len, design.fitting_length_m))
-        pieces = pam_capsules(pts[:, j:], 0, pam_len + fit)
+        pieces = pam_capsules(pts, j, pam_len + fit)
         out.append(Body(pam.id, pieces, festo.outer_diameter(pam.diameter_mm) / 2, j))
     return out
 

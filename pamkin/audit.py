@@ -677,8 +677,8 @@ def _clearance(robot: PamRobot, des: Design, kin_state: dict, pam_state: dict, m
             k = c % n
             pts = route_positions(robot.paths, st, c)
             length = ps.pam_lengths[:, c] + fit
-            # the PAM body starts at its mount segment
-            caps[key][c] = pam_capsules(pts[:, mounts[k]:], 0, length)
+            # the PAM body starts at its mount segment (moved back where the route ends first)
+            caps[key][c] = pam_capsules(pts, mounts[k], length)
 
     def closest(ca: list, cb: list, ra: float, rb: float) -> tuple[float, int]:
         best, arg = np.inf, -1

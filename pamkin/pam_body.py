@@ -52,24 +52,26 @@ def mount_segment(room: np.ndarray) -> tuple[int, float]:
 
 
 def pam_capsules(pts: np.ndarray, j0: int, length: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """The PAM body along the route from the start of segment ``j0`` for ``length`` (S,) [m]:
-    one (A, B, valid) per segment it covers (A, B (S, 3); valid (S,) where the piece exists)."""
+    """The PAM body along the route ``pts`` (S, P, 3): ``length`` (S,) [m] of it from the start of segment
+    ``j0`` — moved back along the route where it would run past the route's last point (a PAM does not hang
+    off its last attachment), never before the first point. One (A, B, valid) per segment of the route
+    (A, B (S, 3); valid (S,) where the body covers part of that segment).
+
+    A PAM that fits on segment ``j0`` (:func:`mount_segment`) lies on it from its start; one that does not
+    bends over the following points, or, where the route ends first, over the points before ``j0`` too."""
     seg = pts[:, 1:] - pts[:, :-1]
-    L = np.linalg.norm(seg, axis=2)
+    L = np.linalg.norm(seg, axis=2)                                  # (S, P-1)
+    cum = np.concatenate([np.zeros((len(pts), 1)), np.cumsum(L, axis=1)], axis=1)
+    length = np.asarray(length, float)
+    s0 = np.maximum(np.minimum(cum[:, j0], cum[:, -1] - length), 0.0)
+    s1 = s0 + length
     out = []
-    s = np.zeros(len(pts))
-    for j in range(j0, seg.shape[1]):
-        lo = s
-        hi = s + L[:, j]
-        ta = np.zeros(len(pts))
-        end = np.minimum(length, hi)
-        valid = end > lo + 1e-12
+    for j in range(seg.shape[1]):
+        lo, hi = np.maximum(s0, cum[:, j]), np.minimum(s1, cum[:, j + 1])
+        valid = hi > lo + 1e-12
         with np.errstate(invalid="ignore", divide="ignore"):
-            tb = np.where(L[:, j] > 1e-12, np.clip((end - lo) / L[:, j], 0, 1), 0.0)
-        A = pts[:, j] + ta[:, None] * seg[:, j]
-        B = pts[:, j] + tb[:, None] * seg[:, j]
-        out.append((A, B, valid))
-        s = hi
-        if np.all(s >= length):
-            break
+            ok = L[:, j] > 1e-12
+            ta = np.where(ok, np.clip((lo - cum[:, j]) / L[:, j], 0, 1), 0.0)
+            tb = np.where(ok, np.clip((hi - cum[:, j]) / L[:, j], 0, 1), 0.0)
+        out.append((pts[:, j] + ta[:, None] * seg[:, j], pts[:, j] + tb[:, None] * seg[:, j], valid))
     return out

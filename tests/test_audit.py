@@ -153,6 +153,37 @@ def test_cached_hierarchies_give_libigl_signed_distance(skel):
 
 
 # ----------------------------------------------------------------------------- samples
+def test_pam_body_lies_on_its_route_from_its_mount_segment():
+    """pamkin.pam_body.pam_capsules: the body starts at its mount segment's start; where the route ends
+    first it is moved back (it does not hang off the last point), never before the first point; the pieces
+    cover exactly min(body, route) of the route, by hand on an L-shaped route (0.3 m, 0.2 m, 0.4 m)."""
+    from pamkin.pam_body import pam_capsules
+
+    pts = np.array([[[0, 0, 0], [0.3, 0, 0], [0.3, 0.2, 0], [0.3, 0.2, 0.4]]], float)
+
+    def pieces(j0, length):
+        return {j: (A[0].round(9).tolist(), B[0].round(9).tolist())
+                for j, (A, B, valid) in enumerate(pam_capsules(pts, j0, np.array([length]))) if valid[0]}
+
+    # fits on the last segment from its start
+    assert pieces(2, 0.25) == {2: ([0.3, 0.2, 0.0], [0.3, 0.2, 0.25])}
+    # 0.5 m from segment 1 (0.2 + 0.4 = 0.6 m left): segment 1 whole, 0.3 m of segment 2
+    assert pieces(1, 0.5) == {1: ([0.3, 0.0, 0.0], [0.3, 0.2, 0.0]), 2: ([0.3, 0.2, 0.0], [0.3, 0.2, 0.3])}
+    # 0.5 m from segment 2 (0.4 m left): moved back 0.1 m onto segment 1, ends at the last point
+    assert pieces(2, 0.5) == {1: ([0.3, 0.1, 0.0], [0.3, 0.2, 0.0]), 2: ([0.3, 0.2, 0.0], [0.3, 0.2, 0.4])}
+    # longer than the whole route (0.9 m): the whole route, from the first point
+    assert pieces(2, 1.2) == {0: ([0.0, 0.0, 0.0], [0.3, 0.0, 0.0]), 1: ([0.3, 0.0, 0.0], [0.3, 0.2, 0.0]),
+                              2: ([0.3, 0.2, 0.0], [0.3, 0.2, 0.4])}
+    # covered length = min(body, route) on random routes and mounts
+    rng = np.random.default_rng(0)
+    P = rng.normal(size=(50, 5, 3)) * 0.2
+    total = np.linalg.norm(np.diff(P, axis=1), axis=2).sum(axis=1)
+    for j0 in range(4):
+        length = rng.uniform(0.05, 1.5, 50)
+        covered = sum(np.where(v, np.linalg.norm(B - A, axis=1), 0.0) for A, B, v in pam_capsules(P, j0, length))
+        np.testing.assert_allclose(covered, np.minimum(length, total), atol=1e-12)
+
+
 def test_random_poses_reproducible_within_rom_and_disjoint(skel):
     rom = load_rom("robot_thesis", "r")
     q1 = random_poses(skel, rom, 2000, seed=0)

@@ -244,6 +244,13 @@ def test_one_segment_stage_tries_a_block_on_the_fixed_route(toy):
     assert "with a 2:1 pulley block on the same route: 10 mm:" in out2["line"]
     off = dataclasses.replace(cfg, mount_blocks=False)
     assert mount_block(prob, sol, info, seed, off, model, rom, solution_pam)[2] is info
+    # tried where the stage found the PAM infeasible at 1:1 too (a block halves the stroke the limits see),
+    # not where it fits at 1:1 at a fit cost
+    infeasible = dict(info, reason="infeasible")
+    got2, _, out3 = mount_block(prob, sol, infeasible, seed, cfg, model, rom, solution_pam)
+    assert out3["mounted"] and "; infeasible at 1:1)" in out3["line"] and got2.objective == got.objective
+    cost = dict(info, reason="fit cost")
+    assert mount_block(prob, sol, cost, seed, cfg, model, rom, solution_pam)[2] is cost
 
 
 def test_config_transmission_table(tmp_path):
