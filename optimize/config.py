@@ -84,6 +84,10 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      count: the unit budget holds) through the bone rounds and the one-segment
                                  #      stage too, where their fit before the rounds scored less; the lower
                                  #      score after the rounds is kept (0: off)
+    max_mass_kg = 22.0           # (v2, with mount_blocks) the robot's estimated mass (both sides, the audit's:
+                                 #      assumed Festo weights and block masses): where the one-segment stage's
+                                 #      pulley blocks take it above this, blocks come off again, the least
+                                 #      score lost per kg first (0: off)
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
     [transmission]               # per actuator: "4" = 2 puts a 2:1 pulley block on its PAM (pamkin.design:
@@ -114,7 +118,8 @@ _SECTIONS = {
                "one_segment": "one_segment", "one_segment_actuators": "one_segment_actuators", "mount": "mount", "mount_cost": "mount_cost", "mount_blocks": "mount_blocks", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
                "bone_seed_start": "bone_seed_start", "bracket_fit": "bracket_fit",
                "max_units": "max_units", "walking_min": "walking_min",
-               "pam_clearance": "pam_clearance", "resize_above": "resize_above"},
+               "pam_clearance": "pam_clearance", "resize_above": "resize_above",
+               "max_mass_kg": "max_mass_kg"},
 }
 
 
@@ -185,6 +190,7 @@ class RunConfig:
     max_units: int = 60
     walking_min: float = 0.9
     resize_above: float = 1.0
+    max_mass_kg: float = 22.0
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     transmission: dict[str, int] = field(default_factory=dict)
     source: str = ""
@@ -237,7 +243,7 @@ class RunConfig:
         for name in ("multistart", "seed", "multistart_threshold", "weight_primary", "weight_secondary",
                      "regularization", "region_m", "min_point_distance_m", "pretension_scale",
                      "weight_whole_vector", "weight_mass", "n_random", "max_solve_seconds", "sensitivity_pct",
-                     "mount_cost", "resize_above"):
+                     "mount_cost", "resize_above", "max_mass_kg"):
             if getattr(self, name) < 0:
                 raise bad(_KEYS[name], f"must be >= 0, got {getattr(self, name)}")
         if self.weight_primary + self.weight_secondary <= 0:

@@ -57,6 +57,7 @@ class ActuatorResult:
     mount: dict = field(default_factory=dict)            # one-segment stage (optimize.mount)
     skipped: list[str] = field(default_factory=list)     # diameter / count tries left out as dominated
     objective: float | None = None                       # the saved solution's fit objective (NRMSE²-like)
+    direct: "ActuatorResult | None" = field(default=None, repr=False)   # before the one-segment stage's block
 
 
 # worker state (fork): set before the pool starts
@@ -214,9 +215,12 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         out.skipped = skipped
         return out
     best, bone, cuts = _bone_rounds(best_problem[0], best, pam, cfg)
-    best, prob, mount = _mount(best_problem[0], best, pam, cfg, cuts)
+    best, prob, mount, direct = _mount(best_problem[0], best, pam, cfg, cuts)
     out = _result(pam, data, prob, best, attempts, t0, bone, mount)
     out.skipped = skipped
+    if direct is not None:
+        out.direct = _result(pam, data, direct[1], direct[0], attempts, t0, bone, direct[2])
+        out.direct.skipped = skipped
     return out
 
 
@@ -361,30 +365,39 @@ def _finish_choice(task: tuple) -> ActuatorResult:
         if not sol.success:
             return _result(pam, data, prob, sol, first.attempts, t0 - first.seconds, {})
     best, bone, cuts = _bone_rounds(prob, sol, pam, cfg)
-    best, prob, mount = _mount(prob, best, pam, cfg, cuts)
+    best, prob, mount, direct = _mount(prob, best, pam, cfg, cuts)
     attempts = first.attempts + [{"diameter_mm": key[0], "n_parallel": key[1], "start": start,
                                   "status": sol.status, "objective": sol.objective, "feasible": bool(sol.success),
                                   "seconds": 0.0, "relaxed": sorted(relax)}]
     out = _result(pam, data, prob, best, attempts, t0 - first.seconds, bone, mount)
     out.skipped = list(first.skipped)
+    if direct is not None:
+        out.direct = _result(pam, data, direct[1], direct[0], [dict(a) for a in attempts], t0 - first.seconds,
+                             bone, direct[2])
+        out.direct.skipped = list(first.skipped)
     return out
 
 
 def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None):
     """The one-segment stage of a solved actuator (when ``cfg.mount``; :mod:`optimize.mount`): on its fixed
     route, and where that fails narrowly, with the bone rounds (``cuts``) and the PAM on the segment
-    (:func:`optimize.mount.mount_rounds`). Returns (solution, its problem, mount info)."""
+    (:func:`optimize.mount.mount_rounds`). Returns (solution, its problem, mount info, direct), ``direct``
+    the (solution, problem, mount info) before a 2:1 block where the stage put the PAM on one (else None)."""
     if not (cfg.mount and best.success):
-        return best, prob, {}
+        return best, prob, {}, None
     from .mount import mount_block, mount_rounds, mount_stage  # noqa: PLC0415
 
     best, info = mount_stage(prob, best, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam)
     if not info.get("mounted") and cuts is not None:
         best, prob, info = mount_rounds(prob, best, info, pam, cfg, cuts, _STATE["human"], _STATE["rom"],
                                         solution_pam)
+    direct = None
     if not info.get("mounted"):
+        before = (best, prob, info)
         best, prob, info = mount_block(prob, best, info, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam)
-    return best, prob, info
+        if info.get("transmission") == 2:
+            direct = before
+    return best, prob, info, direct
 
 
 def choose_units(results: list[ActuatorResult], budget: int) -> tuple[list, float]:
@@ -654,7 +667,7 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
     results = sorted(_map(_solve_actuator, [(k, 0) for k in range(len(pams))], cfg, stream),
                      key=lambda r: order[r.id])
     if not cfg.max_units:
-        return results
+        return mass_pass(seed_design, results, cfg, stream) if cfg.max_mass_kg > 0 else results
     # unit budget: choose every actuator's diameter and count together, then the bone-mesh rounds
     free = sum(r.n_parallel for r in results)
     choice, total = choose_units(results, cfg.max_units // 2 - others)
@@ -668,6 +681,8 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
     results = sorted(_map(_finish_actuator, list(range(len(results))), cfg, stream), key=lambda r: order[r.id])
     if cfg.bone_mesh and cfg.resize_above > 0:
         results = resize_pass(results, cfg, stream)
+    if cfg.max_mass_kg > 0:
+        results = mass_pass(seed_design, results, cfg, stream)
     if cfg.walking_min > 0:
         results = _walking_pass(seed_design, results, cfg.max_units // 2, cfg, stream)   # units of a whole side
     return results
@@ -741,6 +756,46 @@ def resize_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr
         for line in lines:
             print(f"actuator {r.id} {r.name}:{line[1:]}", file=stream, flush=True)
         out[k] = dataclasses.replace(best, bone=dict(best.bone, log=list(best.bone.get("log", [])) + lines))
+    return out
+
+
+def mass_pass(seed: Design, results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr
+              ) -> list[ActuatorResult]:
+    """Keep the robot's estimated mass within ``cfg.max_mass_kg`` where the one-segment stage's pulley blocks
+    took it above: while it is over, the block whose removal loses the least score (objective + mass penalty)
+    per kilogram saved comes off again — the actuator goes back to its result before the block
+    (``ActuatorResult.direct``). The mass is the audit's (:func:`pamkin.design.pam_unit_mass`, both sides,
+    the seed's PAMs for actuators not optimised). Where no block is left to take off, the run says so."""
+    from pamkin.design import pam_unit_mass  # noqa: PLC0415
+
+    def mass(p: Pam) -> float:
+        return 2 * p.n_parallel * pam_unit_mass(p)
+
+    def score(r: ActuatorResult) -> float:
+        p = r.pam
+        return float(r.objective) + cfg.mass_penalty(p.diameter_mm, p.n_parallel, p.resting_length_m, p.transmission)
+
+    ids = {r.id for r in results}
+    total = sum(mass(p) for p in seed.pams if p.id not in ids) + sum(mass(r.pam) for r in results)
+    out = list(results)
+    while total > cfg.max_mass_kg:
+        options = [((score(r.direct) - score(r)) / (mass(r.pam) - mass(r.direct.pam)), k) for k, r in enumerate(out)
+                   if r.direct is not None and r.direct.success and mass(r.pam) > mass(r.direct.pam)]
+        if not options:
+            print(f"mass budget {cfg.max_mass_kg:g} kg: the design's estimate is {total:.2f} kg and no pulley block is "
+                  f"left to take off", file=stream, flush=True)
+            break
+        _, k = min(options)
+        r = out[k]
+        saved = mass(r.pam) - mass(r.direct.pam)
+        line = (f"mass budget {cfg.max_mass_kg:g} kg: {total:.2f} kg; the 2:1 block of actuator {r.id} {r.name} comes "
+                f"off again ({_size(r.pam)} -> {_size(r.direct.pam)}, -{saved:.2f} kg, objective {r.objective:.4g} -> "
+                f"{r.direct.objective:.4g})")
+        print(line, file=stream, flush=True)
+        d = r.direct
+        out[k] = dataclasses.replace(d, bone=dict(d.bone, log=list(d.bone.get("log", [])) + ["  " + line]),
+                                     mount=dict(d.mount, line=d.mount.get("line", "") + "; " + line))
+        total -= saved
     return out
 
 

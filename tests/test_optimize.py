@@ -155,6 +155,7 @@ def test_apply_and_warm_start(tmp_path, monkeypatch):
     ("[limits]\nmount_cost = -0.1\n", "limits.mount_cost: must be >= 0"),
     ("[limits]\nmount = \"yes\"\n", "limits.mount: must be true or false"),
     ("[limits]\nresize_above = -1\n", "limits.resize_above: must be >= 0"),
+    ("[limits]\nmax_mass_kg = -1\n", "limits.max_mass_kg: must be >= 0"),
 ])
 def test_bad_config(tmp_path, text, match):
     f = tmp_path / "run.toml"
@@ -925,3 +926,55 @@ def test_resize_pass_chooses_the_diameter_on_the_fit_after_the_bone_rounds(monke
     calls.clear()
     assert run_mod.resize_pass(now, dataclasses.replace(cfg, resize_above=10.0), io.StringIO()) == now
     assert calls == []
+
+
+def test_mass_pass_takes_blocks_off_while_over_the_budget():
+    """optimize.run.mass_pass: while the design's estimated mass (the audit's, both sides) is above
+    ``max_mass_kg``, the 2:1 block that loses the least score per kilogram comes off (the actuator's result
+    before the block); within the budget nothing changes; with no block left the run says so."""
+    from pamkin.design import pam_unit_mass
+
+    seed = load_design("thesis")
+    cfg = RunConfig(workers=1)
+
+    def solved(aid: int, objective: float, block: bool):
+        r = _fake_result(aid, {})
+        r.pam = dataclasses.replace(r.pam, transmission=2 if block else 1,
+                                    resting_length_m=r.pam.resting_length_m / (2 if block else 1))
+        r.objective, r.bone, r.mount = objective, {"log": []}, {"line": "x"}
+        return r
+
+    def mass(p):
+        return 2 * p.n_parallel * pam_unit_mass(p)
+
+    def score(r):
+        p = r.pam
+        return r.objective + cfg.mass_penalty(p.diameter_mm, p.n_parallel, p.resting_length_m, p.transmission)
+
+    results = []
+    for aid, obj_block, obj_direct in ((5, 0.50, 0.60), (12, 0.10, 0.90), (24, 0.30, 0.31)):
+        r = solved(aid, obj_block, True)
+        r.direct = solved(aid, obj_direct, False)
+        results.append(r)
+    results.append(solved(8, 0.2, False))
+    ids = {r.id for r in results}
+    base = sum(mass(p) for p in seed.pams if p.id not in ids)
+    total = base + sum(mass(r.pam) for r in results)
+    saved = {r.id: mass(r.pam) - mass(r.direct.pam) for r in results[:3]}
+    assert all(v > 0 for v in saved.values())
+    rate = {r.id: (score(r.direct) - score(r)) / saved[r.id] for r in results[:3]}
+    first = min(rate, key=rate.get)
+    # a budget that one removal meets: exactly the cheapest block (per kg) comes off
+    budget = total - 0.5 * saved[first]
+    stream = io.StringIO()
+    out = run_mod.mass_pass(seed, results, dataclasses.replace(cfg, max_mass_kg=budget), stream)
+    assert [r.pam.transmission for r in out] == [1 if r.id == first else (2 if r.direct else 1) for r in results]
+    gone = next(r for r in out if r.id == first)
+    assert gone is not results[[r.id for r in results].index(first)] and "comes off again" in gone.bone["log"][-1]
+    assert base + sum(mass(r.pam) for r in out) <= budget
+    assert stream.getvalue().count("comes off again") == 1
+    # within the budget: unchanged; below what removing every block reaches: all off, and said
+    assert run_mod.mass_pass(seed, results, dataclasses.replace(cfg, max_mass_kg=total + 1e-9), io.StringIO()) == results
+    stream = io.StringIO()
+    out = run_mod.mass_pass(seed, results, dataclasses.replace(cfg, max_mass_kg=1.0), stream)
+    assert all(r.pam.transmission == 1 for r in out) and "no pulley block is left to take off" in stream.getvalue()
