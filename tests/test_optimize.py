@@ -7,6 +7,7 @@ import dataclasses
 import hashlib
 import io
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -978,3 +979,20 @@ def test_mass_pass_takes_blocks_off_while_over_the_budget():
     stream = io.StringIO()
     out = run_mod.mass_pass(seed, results, dataclasses.replace(cfg, max_mass_kg=1.0), stream)
     assert all(r.pam.transmission == 1 for r in out) and "no pulley block is left to take off" in stream.getvalue()
+
+
+def test_default_run_keeps_the_mass_budget(tmp_path):
+    """End to end (the default configuration, erector spinae and the adductors of the v2 seed optimised):
+    both go on 2:1 blocks in the one-segment stage, which takes the robot to 22.2 kg; the mass budget (22 kg)
+    takes off the block that loses least per kilogram — the adductors' — and the saved design is within it."""
+    from pamkin.design import pam_unit_mass
+
+    cfg = RunConfig(actuators=[1, 25])
+    stream = io.StringIO()
+    run(cfg, tmp_path / "run", stream=stream)      # (the audit is the CLI's, not run()'s)
+    des = load_design(tmp_path / "run" / "design.yaml")
+    assert des.pam(1).transmission == 2 and des.pam(25).transmission == 1
+    assert sum(2 * p.n_parallel * pam_unit_mass(p) for p in des.pams) <= 22.0
+    assert re.search(r"mass budget 22 kg: 22\.[0-9]{2} kg; the 2:1 block of actuator 25 Adductor group comes off again",
+                     stream.getvalue())
+    assert "comes off again" in (tmp_path / "run" / "log.txt").read_text()
