@@ -219,8 +219,8 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
     out = _result(pam, data, prob, best, attempts, t0, bone, mount)
     out.skipped = skipped
     if direct is not None:
-        out.direct = _result(pam, data, direct[1], direct[0], attempts, t0, bone, direct[2])
-        out.direct.skipped = skipped
+        out.direct = _result(pam, data, direct[1], direct[0], [dict(a) for a in attempts], t0, bone, direct[2])
+        out.direct.skipped = list(skipped)
     return out
 
 
@@ -688,6 +688,13 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
     return results
 
 
+def result_score(r: ActuatorResult, cfg: RunConfig) -> float:
+    """A saved result's score: its fit objective plus the mass penalty of its PAMs (both sides, with a
+    block's assumed mass) — what the run's choices between results compare."""
+    p = r.pam
+    return float(r.objective) + cfg.mass_penalty(p.diameter_mm, p.n_parallel, p.resting_length_m, p.transmission)
+
+
 def _size(p: Pam) -> str:
     """``20 mm x1`` (``on a 2:1 pulley block`` where it is on one)."""
     return f"{p.diameter_mm} mm x{p.n_parallel}" + (f" on a {p.transmission}:1 pulley block" if p.transmission > 1 else "")
@@ -709,11 +716,10 @@ def resize_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr
     clear of bone, then with the lower score (objective + mass penalty), the present one on ties. The
     actuator's bone log gets one line per try."""
     first: dict = _STATE["first"]
+    chosen: dict = _STATE.get("choice", {})
 
     def score(r: ActuatorResult) -> float:
-        p = r.pam
-        return float(r.objective) + cfg.mass_penalty(p.diameter_mm, p.n_parallel, p.resting_length_m,
-                                                      p.transmission)
+        return result_score(r, cfg)
 
     tasks = []
     for k, r in enumerate(results):
@@ -721,7 +727,7 @@ def resize_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr
             continue
         now = score(r)
         for key, (pre, _, _) in sorted(first[k].candidates.items()):
-            if key[1] == r.n_parallel and key[0] != r.pam.diameter_mm and pre < now:
+            if key[1] == r.n_parallel and key[0] != r.pam.diameter_mm and key != chosen.get(k) and pre < now:
                 tasks.append((k, key, None))
     if not tasks:
         return results
@@ -772,8 +778,7 @@ def mass_pass(seed: Design, results: list[ActuatorResult], cfg: RunConfig, strea
         return 2 * p.n_parallel * pam_unit_mass(p)
 
     def score(r: ActuatorResult) -> float:
-        p = r.pam
-        return float(r.objective) + cfg.mass_penalty(p.diameter_mm, p.n_parallel, p.resting_length_m, p.transmission)
+        return result_score(r, cfg)
 
     ids = {r.id for r in results}
     total = sum(mass(p) for p in seed.pams if p.id not in ids) + sum(mass(r.pam) for r in results)

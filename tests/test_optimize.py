@@ -903,6 +903,7 @@ def test_resize_pass_chooses_the_diameter_on_the_fit_after_the_bone_rounds(monke
              2: _fake_result(4, {(20, 1): 0.07, (40, 1): 0.4}),
              3: _fake_result(5, {(40, 1): 0.02, (20, 1): 0.08})}
     monkeypatch.setitem(run_mod._STATE, "first", first)
+    monkeypatch.setitem(run_mod._STATE, "choice", {0: (20, 1), 1: (20, 1), 2: (20, 1), 3: (40, 1)})
     calls = []
 
     def finish(task):
