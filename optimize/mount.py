@@ -26,8 +26,9 @@ force along the motion changes shape: that, not the geometry, is what mounting c
 Where the fixed route narrowly fails (fit cost at most :data:`ROUNDS_COST_FACTOR` × ``mount_cost``, or out of
 reach by at most :data:`ROUNDS_REACH`), :func:`mount_rounds` frees the points again: the bone-mesh rounds
 run from the solved route with the PAM on the segment (the one-segment rows), and the result is kept under
-the same rules. A warm start keeps a mounted PAM on its segment (:func:`mounted_segment`; the run then
-builds its problem with the rows there).
+the same rules. Where it stays out of reach or infeasible, :func:`mount_block` tries the same route with the
+PAM on a 2:1 pulley block (half the stroke), under the same rule. A warm start keeps a mounted PAM on its
+segment (:func:`mounted_segment`; the run then builds its problem with the rows there).
 """
 
 from __future__ import annotations
