@@ -214,7 +214,10 @@ RESIZE_START = "walking check (route fixed)"
 
 
 def _objective(r) -> float:
-    """The final objective of a swapped result (after its bone-mesh rounds where it had them)."""
+    """The final objective of a swapped result (the saved solution's where the run recorded it, else after its
+    bone-mesh rounds where it had them)."""
+    if getattr(r, "objective", None) is not None:
+        return float(r.objective)
     if not r.attempts:
         return float("inf")
     if r.attempts[-1]["start"] != RESIZE_START and r.bone:
@@ -226,6 +229,7 @@ def _resized(r, pam, sol):
     """Result ``r`` with the fixed-route swap ``(pam, sol)`` of :func:`resize`."""
     return dataclasses.replace(
         r, pam=pam, n_parallel=pam.n_parallel, z=sol.z.copy(), status=sol.status, success=sol.success,
+        objective=float(sol.objective),
         nrmse_samples=sol.nrmse_samples, torque_samples=sol.torque_samples, violations=sol.violations,
         attempts=r.attempts + [{"diameter_mm": pam.diameter_mm, "n_parallel": pam.n_parallel,
                                 "start": RESIZE_START, "status": sol.status, "objective": sol.objective,

@@ -232,7 +232,7 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
 
 
 
-#: Transmission :func:`mount_block` tries for a PAM out of reach of one segment at 1:1 (a 2:1 pulley block).
+#: Transmission :func:`mount_block` tries for a PAM the one-segment stage cannot mount at 1:1 (a 2:1 pulley block).
 BLOCK = 2
 
 
@@ -245,8 +245,8 @@ BLOCK_REASONS = ("out of reach", "infeasible")
 
 def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam) -> tuple[object, object, dict]:
     """A PAM out of reach of one straight segment of its fixed route, or infeasible there (``info`` from
-    :func:`mount_stage`, :data:`BLOCK_REASONS`), with a 2:1 pulley block instead (``[limits] mount_blocks``): the same route and parallel count, the same
-    or a larger diameter, resting length and tendon solved again with the PAM on one segment — half the
+    :func:`mount_stage`, :data:`BLOCK_REASONS`), with a 2:1 pulley block instead (``[limits] mount_blocks``):
+    the same route and parallel count, the same or a larger diameter, resting length and tendon solved again with the PAM on one segment — half the
     stroke at half the force on the route (:mod:`pamkin.design`, transmission) — by :func:`mount_stage`
     under its rule against the direct PAM's objective (root + <= ``mount_cost``; strain, force and segment
     re-checked on the held-out poses). Of the diameters that pass, the least objective + mass penalty

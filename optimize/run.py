@@ -216,12 +216,7 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         return out
     best, bone, cuts = _bone_rounds(best_problem[0], best, pam, cfg)
     best, prob, mount, direct = _mount(best_problem[0], best, pam, cfg, cuts)
-    out = _result(pam, data, prob, best, attempts, t0, bone, mount)
-    out.skipped = skipped
-    if direct is not None:
-        out.direct = _result(pam, data, direct[1], direct[0], [dict(a) for a in attempts], t0, bone, direct[2])
-        out.direct.skipped = list(skipped)
-    return out
+    return _mounted_result(pam, data, prob, best, mount, direct, attempts, t0, bone, skipped)
 
 
 #: The bone-mesh rounds start once more from the seed route unless the first result is clear of bone with
@@ -369,13 +364,7 @@ def _finish_choice(task: tuple) -> ActuatorResult:
     attempts = first.attempts + [{"diameter_mm": key[0], "n_parallel": key[1], "start": start,
                                   "status": sol.status, "objective": sol.objective, "feasible": bool(sol.success),
                                   "seconds": 0.0, "relaxed": sorted(relax)}]
-    out = _result(pam, data, prob, best, attempts, t0 - first.seconds, bone, mount)
-    out.skipped = list(first.skipped)
-    if direct is not None:
-        out.direct = _result(pam, data, direct[1], direct[0], [dict(a) for a in attempts], t0 - first.seconds,
-                             bone, direct[2])
-        out.direct.skipped = list(first.skipped)
-    return out
+    return _mounted_result(pam, data, prob, best, mount, direct, attempts, t0 - first.seconds, bone, first.skipped)
 
 
 def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None):
@@ -398,6 +387,18 @@ def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None):
         if info.get("transmission") == 2:
             direct = before
     return best, prob, info, direct
+
+
+def _mounted_result(pam: Pam, data, prob, best, mount: dict, direct, attempts: list, t0: float, bone: dict,
+                    skipped: list) -> ActuatorResult:
+    """The saved result after the one-segment stage (:func:`_mount`), with the result from before its pulley
+    block as ``direct`` where the stage put the PAM on one (:func:`mass_pass` may go back to it)."""
+    out = _result(pam, data, prob, best, attempts, t0, bone, mount)
+    out.skipped = list(skipped)
+    if direct is not None:
+        out.direct = _result(pam, data, direct[1], direct[0], [dict(a) for a in attempts], t0, bone, direct[2])
+        out.direct.skipped = list(skipped)
+    return out
 
 
 def choose_units(results: list[ActuatorResult], budget: int) -> tuple[list, float]:
@@ -718,14 +719,11 @@ def resize_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr
     first: dict = _STATE["first"]
     chosen: dict = _STATE.get("choice", {})
 
-    def score(r: ActuatorResult) -> float:
-        return result_score(r, cfg)
-
     tasks = []
     for k, r in enumerate(results):
         if not (r.success and r.objective is not None and r.objective > cfg.resize_above):
             continue
-        now = score(r)
+        now = result_score(r, cfg)
         for key, (pre, _, _) in sorted(first[k].candidates.items()):
             if key[1] == r.n_parallel and key[0] != r.pam.diameter_mm and key != chosen.get(k) and pre < now:
                 tasks.append((k, key, None))
@@ -739,7 +737,7 @@ def resize_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr
     for k in sorted({t[0] for t in tasks}):
         r = results[k]
         lines = []
-        best, best_key = r, (not r.bone.get("clear", True), score(r))
+        best, best_key = r, (not r.bone.get("clear", True), result_score(r, cfg))
         for alt in tried:
             if alt.id != r.id:
                 continue
@@ -747,10 +745,10 @@ def resize_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr
             if not alt.success or alt.objective is None:
                 lines.append(f"{what}: {alt.status} (not kept)")
                 continue
-            key = (not alt.bone.get("clear", True), score(alt))
+            key = (not alt.bone.get("clear", True), result_score(alt, cfg))
             lines.append(f"{what} -> {_size(alt.pam)}: objective {alt.objective:.4g}, score {key[1]:.4g}"
                          f"{', not clear of bone' if key[0] else ''} (now {_size(r.pam)}: objective "
-                         f"{r.objective:.4g}, score {score(r):.4g})")
+                         f"{r.objective:.4g}, score {result_score(r, cfg):.4g})")
             if key < best_key:
                 best, best_key = alt, key
         if best is not r:
@@ -777,14 +775,12 @@ def mass_pass(seed: Design, results: list[ActuatorResult], cfg: RunConfig, strea
     def mass(p: Pam) -> float:
         return 2 * p.n_parallel * pam_unit_mass(p)
 
-    def score(r: ActuatorResult) -> float:
-        return result_score(r, cfg)
-
     ids = {r.id for r in results}
     total = sum(mass(p) for p in seed.pams if p.id not in ids) + sum(mass(r.pam) for r in results)
     out = list(results)
     while total > cfg.max_mass_kg:
-        options = [((score(r.direct) - score(r)) / (mass(r.pam) - mass(r.direct.pam)), k) for k, r in enumerate(out)
+        options = [((result_score(r.direct, cfg) - result_score(r, cfg)) / (mass(r.pam) - mass(r.direct.pam)), k)
+                   for k, r in enumerate(out)
                    if r.direct is not None and r.direct.success and mass(r.pam) > mass(r.direct.pam)]
         if not options:
             print(f"mass budget {cfg.max_mass_kg:g} kg: the design's estimate is {total:.2f} kg and no pulley block is "
