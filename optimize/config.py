@@ -57,7 +57,7 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      it narrowly cannot, bone rounds with the PAM on the segment and the points
                                  #      free; elsewhere the run names the PAM and why (optimize.mount)
     mount_blocks = true          # (v2, with mount) a PAM out of reach of one segment at 1:1, or infeasible there, is tried on a 2:1
-                                 #      pulley block on the same route (same count, same or larger diameter;
+                                 #      pulley block on the same route, then 3:1 (same count, same or larger diameter;
                                  #      the same mount_cost rule; optimize.mount.mount_block)
     sensitivity_pct = 9.0        # (v2) a 1 mm error of a fixed attachment point changes the primary torque
                                  # on its 1-D sweep by at most this % of the human peak (audit: 10); 0: off
@@ -88,6 +88,10 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      assumed Festo weights and block masses): where the one-segment stage's
                                  #      pulley blocks take it above this, blocks come off again, the least
                                  #      score lost per kg first (0: off)
+    pam_ends = true              # (v2, with mount) the end of its mount segment every PAM on one segment is anchored
+                                 #      at (the design's pam_at; the tendon on the other side): where the route has a
+                                 #      fixed length on both sides, the end that leaves the fewest intersecting PAM
+                                 #      pairs at the run's own poses (optimize.pam_clearance.choose_ends)
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
     [transmission]               # per actuator: "4" = 2 puts a 2:1 pulley block on its PAM (pamkin.design:
@@ -119,7 +123,7 @@ _SECTIONS = {
                "bone_seed_start": "bone_seed_start", "bracket_fit": "bracket_fit",
                "max_units": "max_units", "walking_min": "walking_min",
                "pam_clearance": "pam_clearance", "resize_above": "resize_above",
-               "max_mass_kg": "max_mass_kg"},
+               "max_mass_kg": "max_mass_kg", "pam_ends": "pam_ends"},
 }
 
 
@@ -191,6 +195,7 @@ class RunConfig:
     walking_min: float = 0.9
     resize_above: float = 1.0
     max_mass_kg: float = 22.0
+    pam_ends: bool = True
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     transmission: dict[str, int] = field(default_factory=dict)
     source: str = ""
@@ -280,7 +285,7 @@ class RunConfig:
             if not re.fullmatch(r"[0-9]+", str(key)):
                 raise bad(f"transmission.{key}", "keys are actuator ids (\"4\")")
             if isinstance(v, bool) or v not in TRANSMISSIONS:
-                raise bad(f"transmission.{key}", f"must be one of {TRANSMISSIONS} (1: direct, 2: a 2:1 pulley "
+                raise bad(f"transmission.{key}", f"must be one of {TRANSMISSIONS} (1: direct, k: a k:1 pulley "
                                                  f"block), got {v!r}")
 
     def check_design(self, design) -> None:

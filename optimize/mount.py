@@ -27,7 +27,7 @@ Where the fixed route narrowly fails (fit cost at most :data:`ROUNDS_COST_FACTOR
 reach by at most :data:`ROUNDS_REACH`), :func:`mount_rounds` frees the points again: the bone-mesh rounds
 run from the solved route with the PAM on the segment (the one-segment rows), and the result is kept under
 the same rules. Where it stays out of reach or infeasible, :func:`mount_block` tries the same route with the
-PAM on a 2:1 pulley block (half the stroke), under the same rule. A warm start keeps a mounted PAM on its
+PAM on a 2:1 pulley block (half the stroke), then a 3:1 block, under the same rule. A warm start keeps a mounted PAM on its
 segment (:func:`mounted_segment`; the run then builds its problem with the rows there).
 """
 
@@ -232,26 +232,29 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
 
 
 
-#: Transmission :func:`mount_block` tries for a PAM the one-segment stage cannot mount at 1:1 (a 2:1 pulley block).
-BLOCK = 2
+#: Transmissions :func:`mount_block` tries, in this order, for a PAM the one-segment stage cannot mount at 1:1:
+#: a 2:1 pulley block, and where no diameter mounts on one, a 3:1 block (a third of the stroke and force;
+#: a second pulley, :func:`pamkin.festo.transmission_mass`). The first ratio that mounts is kept.
+BLOCKS = (2, 3)
 
 
 #: Why the one-segment stage left a PAM spanning its route (``info["reason"]``) where :func:`mount_block` tries a
-#: 2:1 block: out of reach (its stroke needs a longer PAM than any segment holds) and infeasible (no length
-#: keeps the strain, force or sensitivity limits on the segment: mostly the contraction, which half the stroke
+#: block: out of reach (its stroke needs a longer PAM than any segment holds) and infeasible (no length
+#: keeps the strain, force or sensitivity limits on the segment: mostly the contraction, which a shorter stroke
 #: eases). Not "fit cost" (the PAM fits at 1:1 but its torques get worse).
 BLOCK_REASONS = ("out of reach", "infeasible")
 
 
 def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam) -> tuple[object, object, dict]:
     """A PAM out of reach of one straight segment of its fixed route, or infeasible there (``info`` from
-    :func:`mount_stage`, :data:`BLOCK_REASONS`), with a 2:1 pulley block instead (``[limits] mount_blocks``):
-    the same route and parallel count, the same or a larger diameter, resting length and tendon solved again with the PAM on one segment — half the
-    stroke at half the force on the route (:mod:`pamkin.design`, transmission) — by :func:`mount_stage`
-    under its rule against the direct PAM's objective (root + <= ``mount_cost``; strain, force and segment
-    re-checked on the held-out poses). Of the diameters that pass, the least objective + mass penalty
-    (the block's assumed mass included) is kept. The route, so its bone clearance, and the PAM units do
-    not change.
+    :func:`mount_stage`, :data:`BLOCK_REASONS`), on a pulley block instead (``[limits] mount_blocks``): a
+    2:1 block, and where no diameter mounts on it a 3:1 block (:data:`BLOCKS`) — the same route and
+    parallel count, the same or a larger diameter, resting length and tendon solved again with the PAM on
+    one segment — 1/k of the stroke at 1/k of the force on the route (:mod:`pamkin.design`, transmission) —
+    by :func:`mount_stage` under its rule against the direct PAM's objective (root + <= ``mount_cost``;
+    strain, force and segment re-checked on the held-out poses). Of the diameters that pass at the first
+    ratio that mounts, the least objective + mass penalty (the block's assumed mass included) is kept. The
+    route, so its bone clearance, and the PAM units do not change.
 
     Returns:
         ``(solution, problem, info)``: the block's, or ``best``, ``prob`` and ``info`` unchanged (``info``
@@ -266,27 +269,33 @@ def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam)
 
     direct = float(best.objective) + cfg.mass_penalty(best.diameter_mm, best.n_parallel, best.rest_length, 1)
     found, tried = None, []
-    for d in [d for d in cfg.diameters_mm if d >= prob.d]:
-        pk = dataclasses.replace(pam, transmission=BLOCK, diameter_mm=d)
-        p2 = ActuatorProblem(dataclasses.replace(prob.data, pam=pk), cfg, d, prob.seed, prob.regions, prob.relax,
-                             prob.bracket or None)
-        start = dataclasses.replace(p2.evaluate(best.z, best.n_parallel), objective=best.objective,
-                                    rest_length=best.rest_length / BLOCK)
-        sol, out = mount_stage(p2, start, pk, cfg, model, rom, solution_pam)
-        tried.append(f"{d} mm: {out.get('reason') or 'mounted'}"
-                     + (f" (root +{out['cost']:.3f})" if "cost" in out else ""))
-        if out.get("mounted"):
-            score = float(sol.objective) + cfg.mass_penalty(d, best.n_parallel, sol.rest_length, BLOCK)
-            if found is None or score < found[0]:
-                found = (score, sol, p2, out)
+    for k in BLOCKS:
+        these = []
+        for d in [d for d in cfg.diameters_mm if d >= prob.d]:
+            pk = dataclasses.replace(pam, transmission=k, diameter_mm=d)
+            p2 = ActuatorProblem(dataclasses.replace(prob.data, pam=pk), cfg, d, prob.seed, prob.regions,
+                                 prob.relax, prob.bracket or None)
+            start = dataclasses.replace(p2.evaluate(best.z, best.n_parallel), objective=best.objective,
+                                        rest_length=best.rest_length / k)
+            sol, out = mount_stage(p2, start, pk, cfg, model, rom, solution_pam)
+            these.append(f"{d} mm: {out.get('reason') or 'mounted'}"
+                         + (f" (root +{out['cost']:.3f})" if "cost" in out else ""))
+            if out.get("mounted"):
+                score = float(sol.objective) + cfg.mass_penalty(d, best.n_parallel, sol.rest_length, k)
+                if found is None or score < found[0]:
+                    found = (score, sol, p2, out, k)
+        tried.append(f"with a {k}:1 pulley block on the same route: {', '.join(these)}")
+        if found is not None:
+            break
     if found is None:
-        info = dict(info, block_tried=tried,
-                    line=info["line"] + f"; with a 2:1 pulley block on the same route: {', '.join(tried)}")
+        info = dict(info, block_tried=tried, line=info["line"] + "; " + "; ".join(tried))
         return best, prob, info
-    score, sol, p2, out = found
-    out = dict(out, transmission=BLOCK, direct=info, block_tried=tried, score_before=direct, score_after=score,
-               line=f"on one straight segment {out['segment']} with a 2:1 pulley block ({sol.diameter_mm} mm x"
-                    f"{sol.n_parallel}; {info['reason']} at 1:1): resting length {best.rest_length:.3f} -> "
+    score, sol, p2, out, k = found
+    out = dict(out, transmission=k, direct=info, block_tried=tried, score_before=direct, score_after=score,
+               line=f"on one straight segment {out['segment']} with a {k}:1 pulley block ({sol.diameter_mm} mm x"
+                    f"{sol.n_parallel}; {info['reason']} at 1:1"
+                    + (f", {tried[0].replace('with a ', 'on a ', 1)}" if k != BLOCKS[0] else "")
+                    + f"): resting length {best.rest_length:.3f} -> "
                     f"{sol.rest_length:.3f} m, tendon {max(best.tendon_length, 0.0):.3f} -> "
                     f"{max(sol.tendon_length, 0.0):.3f} m, objective {best.objective:.4g} -> {sol.objective:.4g}, "
                     f"with the mass penalty {direct:.4g} -> {score:.4g}")

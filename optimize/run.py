@@ -371,7 +371,7 @@ def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None):
     """The one-segment stage of a solved actuator (when ``cfg.mount``; :mod:`optimize.mount`): on its fixed
     route, and where that fails narrowly, with the bone rounds (``cuts``) and the PAM on the segment
     (:func:`optimize.mount.mount_rounds`). Returns (solution, its problem, mount info, direct), ``direct``
-    the (solution, problem, mount info) before a 2:1 block where the stage put the PAM on one (else None)."""
+    the (solution, problem, mount info) before a pulley block where the stage put the PAM on one (else None)."""
     if not (cfg.mount and best.success):
         return best, prob, {}, None
     from .mount import mount_block, mount_rounds, mount_stage  # noqa: PLC0415
@@ -697,7 +697,7 @@ def result_score(r: ActuatorResult, cfg: RunConfig) -> float:
 
 
 def _size(p: Pam) -> str:
-    """``20 mm x1`` (``on a 2:1 pulley block`` where it is on one)."""
+    """``20 mm x1`` (``on a k:1 pulley block`` where it is on one)."""
     return f"{p.diameter_mm} mm x{p.n_parallel}" + (f" on a {p.transmission}:1 pulley block" if p.transmission > 1 else "")
 
 
@@ -789,7 +789,7 @@ def mass_pass(seed: Design, results: list[ActuatorResult], cfg: RunConfig, strea
         _, k = min(options)
         r = out[k]
         saved = mass(r.pam) - mass(r.direct.pam)
-        line = (f"mass budget {cfg.max_mass_kg:g} kg: {total:.2f} kg; the 2:1 block of actuator {r.id} {r.name} comes "
+        line = (f"mass budget {cfg.max_mass_kg:g} kg: {total:.2f} kg; the {r.pam.transmission}:1 block of actuator {r.id} {r.name} comes "
                 f"off again ({_size(r.pam)} -> {_size(r.direct.pam)}, -{saved:.2f} kg, objective {r.objective:.4g} -> "
                 f"{r.direct.objective:.4g})")
         print(line, file=stream, flush=True)
@@ -947,6 +947,13 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         new = new.replace_pam(r.pam)
     new = Design(f"optimized from {seed.name}", new.pams, new.pressure_Pa, new.force_model,
                  new.fitting_length_m, new.rom, f"pamkin optimize run {out_dir.name}", "", dict(new.extra))
+    ends: list[str] = []
+    if cfg.mount and cfg.pam_ends:
+        from .pam_clearance import choose_ends  # noqa: PLC0415
+
+        new, ends = choose_ends(new, _STATE["human"], _STATE["rom"], cfg.seed)
+        for line in ends:
+            print(line, file=stream, flush=True)
     for r in results:
         log.append(f"actuator {r.id} {r.name}: {r.status} in {r.seconds:.1f} s; attempts: " +
                    "; ".join(f"{a['diameter_mm']} mm x{a['n_parallel']} {a['start']}: {a['status']} "
@@ -977,6 +984,8 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         summary["bone_mesh_fit_cost"] = costly
     if any(r.mount for r in results):
         summary["one_segment"] = {str(r.id): r.mount for r in results if r.mount}
+    if ends:
+        summary["pam_ends"] = ends
     if _STATE.get("walking"):
         summary["walking_check"] = _STATE["walking"]      # optimize.gait_check: fractions between the trial's frames
     summary["solve_seconds"] = round(solve_seconds, 1)
@@ -984,6 +993,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
     save_design(new, out_dir / "design.yaml", _run_header(out_dir, cfg))
     atomic_write(out_dir / "summary.json", json.dumps(summary, indent=2))
     before_after_plot(seed, new, out_dir / "before_after.png")
+    log.extend(ends)
     log.append(f"total {summary['total_seconds']} s (solves {solve_seconds:.1f} s)")
     atomic_write(out_dir / "log.txt", "\n".join(log) + "\n")
     try:

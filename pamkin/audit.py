@@ -51,7 +51,7 @@ from .design import Design, load_design, pam_length, pam_unit_mass
 from .errors import ConfigurationError, DataFileError, RangeWarning
 from .model import Model
 from .osim import ConditionalPathPoint, MovingPathPoint, PathPoint
-from .pam_body import body_room, mount_segment, pam_capsules, route_positions, segment_names
+from .pam_body import pam_capsules, placement, route_positions, segment_names
 from .paths import PathSet
 from .robot import PamRobot, robot_skeleton
 from .rom import RangeOfMotion, load_rom
@@ -365,15 +365,15 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
     mounts = []
     for k, (pam, row) in enumerate(zip(des.pams, rows)):
         pts = route_positions(right.paths, ks_all, k)
-        seg_len = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=2)
-        pam_len = st_all.pam_lengths[:, k]
-        j, margin = mount_segment(body_room(seg_len, pam.resting_length_m, pam_len, des.fitting_length_m))
+        place = placement(pts, pam, st_all.pam_lengths[:, k], des.fitting_length_m)
+        j, margin = place.segment, place.margin
         seg_names = segment_names(pam)
-        mounts.append(j)
+        mounts.append(place)
         row["tendon_ok"] = bool(pam.tendon_length_m >= 0)
         row["on_one_segment"] = bool(margin >= 0)
         row["mount_segment"] = seg_names[j]
         row["mount_margin_m"] = margin
+        row["pam_at"] = place.side if margin >= 0 else None
         row["bends_over"] = None if margin >= 0 else (
             pam.points[j + 1].name if j + 1 < len(pam.points) - 1 else pam.points[j].name)
         F = st_all.unit_forces[:, k]
@@ -657,7 +657,7 @@ def _slice_state(state, a: int, b: int):
     return SimpleNamespace(q=state.q[a:b], body_R=state.body_R[a:b], body_p=state.body_p[a:b])
 
 
-def _clearance(robot: PamRobot, des: Design, kin_state: dict, pam_state: dict, mounts: list[int]):
+def _clearance(robot: PamRobot, des: Design, kin_state: dict, pam_state: dict, mounts: list):
     """Minimum signed distance between the PAM bodies of every pair of actuators.
 
     Same side (right): over the random poses and the gait; left–right: over the gait.
@@ -677,8 +677,8 @@ def _clearance(robot: PamRobot, des: Design, kin_state: dict, pam_state: dict, m
             k = c % n
             pts = route_positions(robot.paths, st, c)
             length = ps.pam_lengths[:, c] + fit
-            # the PAM body starts at its mount segment (moved back where the route ends first)
-            caps[key][c] = pam_capsules(pts, mounts[k], length)
+            # the PAM body at its mount segment's anchored end (moved back where the route ends first)
+            caps[key][c] = pam_capsules(pts, mounts[k].segment, length, mounts[k].side)
 
     def closest(ca: list, cb: list, ra: float, rb: float) -> tuple[float, int]:
         best, arg = np.inf, -1

@@ -19,7 +19,8 @@ mirror image (z → −z in every body frame, ``_r`` → ``_l``). Format::
         n_parallel: 1
         resting_length_m: 0.4
         tendon_length_m: 0.1          # artificial tendon (may be negative only as a flagged defect)
-        transmission: 1               # optional: 2 = a 2:1 pulley block on the PAM's free end
+        transmission: 1               # optional: 2 or 3 = a 2:1 or 3:1 pulley block on the PAM's free end
+        pam_at: insertion             # optional: the end of its mount segment the PAM sits at (origin, insertion)
         points:                       # route, origin first; PathPoint / MovingPathPoint
           - {name: p5, body: pelvis, location: [-0.126, -0.103, 0.069]}
           - ...
@@ -27,9 +28,9 @@ mirror image (z → −z in every body frame, ``_r`` → ``_l``). Format::
 Lengths: path length L = l_pam + 2·fitting + tendon, so the PAM's own length is
 l_pam = L − 2·fitting − tendon and its contraction ε = (l_rest − l_pam)/l_rest.
 
-Transmission k (``transmission``, 1 or 2; default 1): with k = 2 the PAM and its fittings sit in a
+Transmission k (``transmission``, 1, 2 or 3; default 1): with k = 2 the PAM and its fittings sit in a
 rigid frame in series with the cable, a pulley on the PAM's free end carrying the cable twice (a 2:1
-block). The route's length then changes k times as fast as the PAM's and its tension is the PAM's
+block); with k = 3 a second pulley at the frame's anchor makes three legs (a 3:1 block). The route's length then changes k times as fast as the PAM's and its tension is the PAM's
 force ÷ k: L = k·(l_pam + 2·fitting) + tendon, so l_pam = (L − tendon)/k − 2·fitting, and the force
 on the route (the torque's) is n_parallel · F(ε) / k. A PAM whose excursion needs more length than
 any straight segment of its route holds (at k = 1) fits on one with k = 2, at twice the force.
@@ -47,6 +48,7 @@ import yaml
 
 from .errors import DataFileError
 from .functions import Constant, MultiplierFunction
+from .pam_body import PAM_AT
 from .osim import (
     AnyPathPoint,
     ConditionalPathPoint,
@@ -70,8 +72,8 @@ V2_SEED_DESIGN = ROBOT_DIR / "data" / "v2_seed_design.yaml"
 #: The robot's current design (starts as the thesis design; ``pamkin optimize --apply`` replaces it).
 ROBOT_DESIGN = ROBOT_DIR / "data" / "pam_biped.yaml"
 DIAMETERS_MM = (10, 20, 40)
-#: Transmission ratios a PAM may have: 1 (the cable pulls the PAM directly), 2 (a 2:1 pulley block).
-TRANSMISSIONS = (1, 2)
+#: Transmission ratios a PAM may have: 1 (the cable pulls the PAM directly), 2 or 3 (a 2:1 or 3:1 pulley block).
+TRANSMISSIONS = (1, 2, 3)
 _REQUIRED = ("id", "name", "human_muscles", "primary_coordinate", "diameter_mm", "resting_length_m",
              "tendon_length_m", "points")
 
@@ -92,8 +94,11 @@ class Pam:
         tendon_length_m: Artificial tendon length [m].
         points: Route (origin first).
         notes: Free text.
-        transmission: Cable legs at the PAM's free end: 1 (direct) or 2 (a 2:1 pulley block: the
-            route moves twice the PAM's stroke at half its force).
+        transmission: Cable legs at the PAM's free end: 1 (direct), 2 or 3 (a k:1 pulley block: the
+            route moves k times the PAM's stroke at 1/k of its force).
+        pam_at: The end of its mount segment the PAM (on a block: its frame) is anchored at, "origin" or
+            "insertion" (the artificial tendon on the other side); None: the origin end where the route
+            before the segment has a fixed length, else the insertion end (:mod:`pamkin.pam_body`).
     """
 
     id: int
@@ -108,6 +113,7 @@ class Pam:
     points: tuple[AnyPathPoint, ...]
     notes: str = ""
     transmission: int = 1
+    pam_at: str | None = None
 
     @property
     def key(self) -> str:
@@ -166,6 +172,7 @@ class Design:
             "diameter_mm": int(p.diameter_mm), "n_parallel": int(p.n_parallel),
             "resting_length_m": float(p.resting_length_m), "tendon_length_m": float(p.tendon_length_m),
             **({"transmission": int(p.transmission)} if p.transmission != 1 else {}),
+            **({"pam_at": p.pam_at} if p.pam_at is not None else {}),
             "notes": p.notes,
             "points": [_point_to_dict(pt) for pt in p.points],
         } for p in self.pams]
@@ -244,6 +251,10 @@ def design_from_dict(data: dict, path: str = "<design>", bodies: list[str] | Non
         if isinstance(ratio, bool) or ratio not in TRANSMISSIONS:
             raise _fail(path, f"{where}: transmission must be one of {TRANSMISSIONS} (cable legs at the PAM's "
                               f"free end), is {ratio!r}")
+        pam_at = d.get("pam_at")
+        if pam_at is not None and pam_at not in PAM_AT:
+            raise _fail(path, f"{where}: pam_at must be one of {PAM_AT} (the end of its mount segment the PAM "
+                              f"is anchored at), is {pam_at!r}")
         try:
             points = tuple(point_from_dict(p) for p in d["points"])
         except (KeyError, TypeError, ValueError) as e:
@@ -263,7 +274,7 @@ def design_from_dict(data: dict, path: str = "<design>", bodies: list[str] | Non
                 raise _fail(path, f"{where}: unknown coordinate(s) {bad}")
         pams.append(Pam(int(d["id"]), str(d["name"]), tuple(d["human_muscles"]), d["primary_coordinate"],
                         tuple(d.get("secondary_coordinates", [])), int(d["diameter_mm"]), npar, rest,
-                        tendon, points, str(d.get("notes", "")), int(ratio)))
+                        tendon, points, str(d.get("notes", "")), int(ratio), pam_at))
     known = {"name", "description", "rom", "force_model", "pressure_Pa", "fitting_length_m", "pams"}
     try:
         return Design(str(data.get("name", Path(path).stem)), tuple(pams), float(data.get("pressure_Pa", 620e3)),

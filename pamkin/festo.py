@@ -450,14 +450,15 @@ def pam_mass(rest_length: Array, diameter_mm: int) -> np.ndarray:
 
 
 def transmission_mass(rest_length: Array, diameter_mm: int, transmission: int = 1) -> np.ndarray:
-    """Estimated mass [kg] a transmission adds to one PAM: 0 for a direct PAM (1); for a 2:1 pulley block
-    (2) a pulley and anchor plus a frame along the PAM (per metre of resting length). An **assumption**
-    (``festo_catalogue.assumed_pulley_block_mass``)."""
+    """Estimated mass [kg] a transmission adds to one PAM: 0 for a direct PAM (1); for a k:1 pulley block
+    (k = 2, 3) k − 1 pulleys with bearings and the cable anchor (``base_kg`` each) plus a frame along the PAM
+    (per metre of resting length). An **assumption** (``festo_catalogue.assumed_pulley_block_mass``)."""
     d = check_diameter(diameter_mm)
-    if int(transmission) == 1:
+    k = int(transmission)
+    if k == 1:
         return np.zeros_like(np.asarray(rest_length, float))
     m = _raw()["festo_catalogue"]["assumed_pulley_block_mass"]
-    return m["base_kg"][str(d)] + m["per_m_kg"][str(d)] * np.asarray(rest_length, float)
+    return (k - 1) * m["base_kg"][str(d)] + m["per_m_kg"][str(d)] * np.asarray(rest_length, float)
 
 
 def outer_diameter(diameter_mm: int) -> float:

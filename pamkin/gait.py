@@ -477,7 +477,7 @@ class PamGaitResult:
         peak_force_N: Largest force on the route [N] (the PAMs' force ÷ transmission).
         air_per_stride_NL: Supply air per stride [normal litres] (module docstring).
         volume_range_L: (min, max) inner volume of all its parallel PAMs [L].
-        transmission: 1, or 2 for a PAM on a 2:1 pulley block (:mod:`pamkin.design`).
+        transmission: 1, or k for a PAM on a k:1 pulley block (:mod:`pamkin.design`).
     """
 
     name: str

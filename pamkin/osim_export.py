@@ -28,8 +28,8 @@ What is written:
   ignores it). OpenSim 4.6 requires the three components to depend on one coordinate
   (pamkin does not): other points are refused with :class:`OsimExportError`.
 * ``optimal_force`` = the PAM's maximum force at 620 kPa, F620(l0) (:func:`pamkin.festo.f620`,
-  the v3 model's isometric force at zero contraction) × ``n_parallel`` ÷ the transmission (a 2:1
-  block halves the route's tension, :mod:`pamkin.design`); ``min_control`` 0,
+  the v3 model's isometric force at zero contraction) × ``n_parallel`` ÷ the transmission (a k:1
+  block divides the route's tension by k, :mod:`pamkin.design`); ``min_control`` 0,
   ``max_control`` 1. OpenSim's PathActuator tension is control × optimal_force, independent
   of length: a linear stand-in for the PAM, whose real force falls with contraction
   (:func:`pamkin.festo.force`). An XML comment in each actuator states the diameter, resting

@@ -1,5 +1,12 @@
 """Where a PAM body sits on its route: route point positions, the room a segment leaves for the body,
-the segment that holds it best and the body's capsules.
+the segment that holds it best, the end of that segment it is anchored at and the body's capsules.
+
+A PAM (on a pulley block: its frame) on one straight segment is anchored with a constant artificial
+tendon on one side: at the segment's **origin** end (the tendon after it) or its **insertion** end (the
+tendon before it). An end is possible only where the route's length on the tendon's other side — from the
+route's origin to the segment's start, or from the segment's end to the insertion — is the same at every
+pose (:func:`fixed_ends`); otherwise the PAM would have to slide along the segment as the joints move. A
+design may name the end (``pam_at``); by default the origin end where possible, else the insertion end.
 
 The audit (:mod:`pamkin.audit`) measures with these, and the optimiser's one-segment stage and PAM
 clearance pass (:mod:`pamkin.optimize.mount`, :mod:`pamkin.optimize.pam_clearance`) use the same
@@ -8,11 +15,20 @@ definitions. Lengths in metres.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .paths import PathSet
 
-__all__ = ["body_room", "mount_segment", "pam_capsules", "route_positions", "segment_names"]
+__all__ = ["PAM_AT", "Placement", "body_interval", "body_room", "body_side", "fixed_ends", "mount_segment", "pam_capsules",
+           "placement", "route_positions", "segment_names"]
+
+#: The ends of its mount segment a PAM may be anchored at (``pam_at`` of a design's PAM).
+PAM_AT = ("origin", "insertion")
+
+#: A route length before/after a segment counts as fixed when it changes by less than this over the poses [m].
+FIXED_TOLERANCE = 1e-6
 
 
 def route_positions(paths: PathSet, state, k: int) -> np.ndarray:
@@ -51,20 +67,56 @@ def mount_segment(room: np.ndarray) -> tuple[int, float]:
     return j, float(margin[j])
 
 
-def pam_capsules(pts: np.ndarray, j0: int, length: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """The PAM body along the route ``pts`` (S, P, 3): ``length`` (S,) [m] of it from the start of segment
-    ``j0`` — moved back along the route where it would run past the route's last point (a PAM does not hang
-    off its last attachment), never before the first point. One (A, B, valid) per segment of the route
-    (A, B (S, 3); valid (S,) where the body covers part of that segment).
-
-    A PAM that fits on segment ``j0`` (:func:`mount_segment`) lies on it from its start; one that does not
-    bends over the following points, or, where the route ends first, over the points before ``j0`` too."""
+def _cumulative(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     seg = pts[:, 1:] - pts[:, :-1]
     L = np.linalg.norm(seg, axis=2)                                  # (S, P-1)
-    cum = np.concatenate([np.zeros((len(pts), 1)), np.cumsum(L, axis=1)], axis=1)
+    return seg, L, np.concatenate([np.zeros((len(pts), 1)), np.cumsum(L, axis=1)], axis=1)
+
+
+def fixed_ends(pts: np.ndarray, j0: int) -> tuple[bool, bool]:
+    """Whether segment ``j0`` of the route ``pts`` (S, P, 3) has a fixed-length route before it (from the
+    route's origin to its start) and after it (from its end to the insertion) over the S poses: the ends
+    a PAM on it can be anchored at with a constant tendon (origin end, insertion end)."""
+    _, _, cum = _cumulative(pts)
+    return (bool(np.ptp(cum[:, j0]) < FIXED_TOLERANCE),
+            bool(np.ptp(cum[:, -1] - cum[:, j0 + 1]) < FIXED_TOLERANCE))
+
+
+def body_side(pam_at: str | None, origin_fixed: bool, insertion_fixed: bool) -> str:
+    """The end of its mount segment a PAM body is put at: ``pam_at`` (the design's) where that end is fixed
+    (:func:`fixed_ends`), else the origin end where fixed, else the insertion end where fixed, else the origin
+    end (a PAM with both sides moving, or one that spans the route)."""
+    ok = {"origin": origin_fixed, "insertion": insertion_fixed}
+    if pam_at is not None and ok.get(pam_at):
+        return pam_at
+    return "insertion" if insertion_fixed and not origin_fixed else "origin"
+
+
+def body_interval(pts: np.ndarray, j0: int, length: np.ndarray, side: str = "origin") -> tuple[np.ndarray, np.ndarray]:
+    """Arc lengths (s0, s1) (S,) [m] along the route ``pts`` (S, P, 3) of a body of ``length`` (S,) at
+    the ``side`` end of segment ``j0`` (:func:`pam_capsules`)."""
+    if side not in PAM_AT:
+        raise ValueError(f"side must be one of {PAM_AT}, is {side!r}")
+    _, _, cum = _cumulative(pts)
     length = np.asarray(length, float)
-    s0 = np.maximum(np.minimum(cum[:, j0], cum[:, -1] - length), 0.0)
-    s1 = s0 + length
+    start = cum[:, j0] if side == "origin" else cum[:, j0 + 1] - length
+    s0 = np.maximum(np.minimum(start, cum[:, -1] - length), 0.0)
+    return s0, s0 + length
+
+
+def pam_capsules(pts: np.ndarray, j0: int, length: np.ndarray, side: str = "origin"
+                 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The PAM body along the route ``pts`` (S, P, 3): ``length`` (S,) [m] of it from the start of segment
+    ``j0`` (``side`` "origin"), or ending at its end ("insertion") — moved along the route where it would run
+    past the route's last point (a PAM does not hang off its last attachment) or before its first. One
+    (A, B, valid) per segment of the route (A, B (S, 3); valid (S,) where the body covers part of that
+    segment).
+
+    A PAM that fits on segment ``j0`` (:func:`mount_segment`) lies on it from that end; one that does not
+    bends over the following (preceding) points, or, where the route ends first, over the points on the
+    other side of ``j0`` too."""
+    seg, L, cum = _cumulative(pts)
+    s0, s1 = body_interval(pts, j0, length, side)
     out = []
     for j in range(seg.shape[1]):
         lo, hi = np.maximum(s0, cum[:, j]), np.minimum(s1, cum[:, j + 1])
@@ -75,3 +127,38 @@ def pam_capsules(pts: np.ndarray, j0: int, length: np.ndarray) -> list[tuple[np.
             tb = np.where(ok, np.clip((hi - cum[:, j]) / L[:, j], 0, 1), 0.0)
         out.append((pts[:, j] + ta[:, None] * seg[:, j], pts[:, j] + tb[:, None] * seg[:, j], valid))
     return out
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a PAM body sits over a set of poses: its mount segment (index), the least room it leaves there
+    (:func:`body_room`; negative: the PAM does not fit on one segment and bends over its ends) and the end
+    of the segment it is anchored at (:func:`body_side`; "origin" for a PAM that does not fit)."""
+
+    segment: int
+    margin: float
+    side: str
+
+    @property
+    def on_one_segment(self) -> bool:
+        return self.margin >= 0
+
+
+def placement(pts: np.ndarray, pam, pam_len: np.ndarray, fitting_length: float) -> Placement:
+    """:class:`Placement` of ``pam`` (a :class:`pamkin.design.Pam`) on its route ``pts`` (S, P, 3) at S poses
+    with PAM lengths ``pam_len`` (S,) [m] — what ``pamkin audit``, the optimiser's PAM–PAM checks and the
+    viewer put where."""
+    seg_len = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=2)
+    room = body_room(seg_len, pam.resting_length_m, pam_len, fitting_length)
+    j, margin = mount_segment(room)
+    if margin < 0:
+        return Placement(j, margin, "origin")
+    ends = fixed_ends(pts, j)
+    if not any(ends):
+        # both sides of the segment change length: the PAM floats between two tendons of fixed length, so
+        # its start along the route is one constant for every pose: after the segment's latest start and
+        # before its earliest end less the body
+        _, _, cum = _cumulative(pts)
+        need = room[:, j] - seg_len[:, j]                      # −(body length) at every pose
+        margin = min(margin, float(np.min(cum[:, j + 1] + need) - np.max(cum[:, j])))
+    return Placement(j, margin, body_side(pam.pam_at, *ends) if margin >= 0 else "origin")

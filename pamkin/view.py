@@ -7,12 +7,14 @@ A view shows, in one self-contained web page (meshcat's static HTML, three.js in
   each child's joint origin, a sphere at the origin);
 * human muscles (Gait2392, full activation, static equilibrium) as thin cylinders of radius
   :data:`MUSCLE_RADIUS` through their path points in effect (conditional points only in range);
-* robot PAMs along their routes. A route of length L holds, from its origin: a fitting
-  (``fitting_length_m``), the PAM itself (length rest·(1 − strain) = (L − tendon)/transmission − 2·fitting),
-  then the second fitting and the artificial tendon. The PAM is a cylinder of its Festo nominal
-  (inner) diameter; the whole route is underlaid by a thin dark-grey cylinder, so what shows
-  beyond the PAM is fittings + tendon. A PAM longer than its route (negative tendon, a flagged
-  design defect) is clipped at the route's last fitting.
+* robot PAMs along their routes. A route holds a fitting (``fitting_length_m``), the PAM itself
+  (length rest·(1 − strain) = (L − tendon)/transmission − 2·fitting), the second fitting and the
+  artificial tendon; the PAM with its fittings sits where ``pamkin audit`` puts it
+  (:func:`pam_placements`, :mod:`pamkin.pam_body`): at the anchored end of its mount segment (the
+  design's ``pam_at``), bending over the route's points where it does not fit on one segment. The
+  PAM is a cylinder of its Festo nominal (inner) diameter; the whole route is underlaid by a thin
+  dark-grey cylinder, so what shows beyond the PAM is fittings + tendon. A PAM longer than its route
+  (negative tendon, a flagged design defect) is clipped at the route's ends.
 * colours by force [N] or strain [-] on one scale for muscles and PAMs (legend in the page
   header); a PAM outside its strain range (a dead zone) is drawn in :data:`DEAD_ZONE_COLOR`.
 
@@ -44,6 +46,7 @@ import numpy as np
 
 from ._resources import DEFAULT_GEOMETRY as _DEFAULT_GEOMETRY
 from .errors import ConfigurationError, PamkinError, RangeWarning
+from .pam_body import body_interval, placement, route_positions
 
 __all__ = ["ColorScale", "StaticWindow", "View", "build_view", "screenshot", "simple_bone_meshes"]
 
@@ -463,19 +466,20 @@ def build_view(human, robot, *, meshes: dict | None = None, layout: str = "side"
         corners.append(np.concatenate([lines[f][m] for f in range(F)]))
         _cylinders(vis, anim, f"pamkin/human/muscles/{name}", ends, MUSCLE_RADIUS, h_rgb[:, m], basic=True)
 
-    # robot PAMs: thin route (fittings + tendon), thick PAM
+    # robot PAMs: thin route (fittings + tendon), thick PAM where the audit puts it (pamkin.pam_body)
     fit = robot.design.fitting_length_m
     routes = [robot.paths.polylines(rk, f) for f in range(F)]
+    places = pam_placements(robot)
     for k, name in enumerate(robot.names):
         n_seg = max(len(routes[f][k]) for f in range(F)) - 1
         corners.append(np.concatenate([routes[f][k] for f in range(F)]) + robot_origin)
         node = f"pamkin/robot/pams/{name}"
         _cylinders(vis, anim, f"{node}/route", [_padded_segments(routes[f][k], n_seg) for f in range(F)],
                    TENDON_RADIUS, np.tile(_rgb(TENDON_COLOR), (F, 1)), basic=True)
-        pieces = []
-        for f in range(F):
-            L = rs.lengths[f, k]
-            pieces.append(_clip_polyline(routes[f][k], fit, min(fit + rs.pam_lengths[f, k], L - fit)))
+        pts = route_positions(robot.paths, rk, k)
+        place = places[k % len(places)]
+        s0, s1 = body_interval(pts, place.segment, rs.pam_lengths[:, k] + 2 * fit, place.side)
+        pieces = [_clip_polyline(pts[f], s0[f] + fit, max(s0[f] + fit, s1[f] - fit)) for f in range(F)]
         _cylinders(vis, anim, f"{node}/pam", pieces, robot.diameter[k] / 2000.0, r_rgb[:, k], basic=False)
 
     _frame_camera(vis, np.concatenate(corners))
@@ -486,6 +490,31 @@ def build_view(human, robot, *, meshes: dict | None = None, layout: str = "side"
     if anim is not None:
         vis.set_animation(anim, play=True, repetitions=1_000_000)
     return View(vis, Q, scale, h_rgb, r_rgb, title)
+
+
+#: Random poses (the design's range of motion, the audit's stream and seed 0) over which the viewer finds
+#: each PAM's mount segment and end (:func:`pam_placements`).
+PLACEMENT_POSES = 300
+
+
+def pam_placements(robot) -> list:
+    """Where each PAM of ``robot`` (a :class:`pamkin.robot.PamRobot`) sits on its route
+    (:func:`pamkin.pam_body.placement`: mount segment and anchored end) over :data:`PLACEMENT_POSES` random
+    poses of its range of motion — the audit's rule on the first of the audit's random poses. One per
+    PAM of the design (the left copy sits where the right one does)."""
+    from .audit import random_poses  # noqa: PLC0415
+    from .robot import PamRobot  # noqa: PLC0415
+    from .rom import load_rom  # noqa: PLC0415
+
+    model = robot.model
+    q = random_poses(model, load_rom(robot.design.rom, "r"), PLACEMENT_POSES)
+    right = PamRobot(robot.design, model, sides=("r",))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RangeWarning)
+        st = right.evaluate(q)
+        ks = model.kinematics.forward(q, warn_range=False)
+    return [placement(route_positions(right.paths, ks, k), p, st.pam_lengths[:, k], robot.design.fitting_length_m)
+            for k, p in enumerate(robot.design.pams)]
 
 
 def _rgb(hex_color: int) -> np.ndarray:
@@ -580,14 +609,16 @@ def _header(title: str, scale: ColorScale, layout: str, robot, dead: list[str], 
         keys = sorted({n.rsplit("_", 1)[0] for n in names})
         return ", ".join(keys[:10]) + (" ..." if len(keys) > 10 else "")
 
-    blocks = [robot.names[k] for k in range(len(robot.names)) if robot.transmission[k] != 1]
+    blocks = {int(t): [robot.names[k] for k in range(len(robot.names)) if robot.transmission[k] == t]
+              for t in sorted(set(robot.transmission.tolist())) if t != 1}
     flags = []
     if dead:
         flags.append(f"in a dead zone{' during the sweep' if sweep else ''}: {short(dead)}")
     if negative:
         flags.append(f"PAM longer than its route (negative tendon), drawn clipped: {short(negative)}")
-    if blocks:
-        flags.append(f"on a 2:1 pulley block (the PAM drawn at its own length, half the route's stroke): {short(blocks)}")
+    for t, names in blocks.items():
+        flags.append(f"on a {t}:1 pulley block (the PAM drawn at its own length, 1/{t} of the route's stroke): "
+                     f"{short(names)}")
     if sweep:
         flags.append(f"animation: {sweep} over range of motion {robot.design.rom} ('Open Controls' to pause or scrub)")
     lines = [

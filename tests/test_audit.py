@@ -184,6 +184,48 @@ def test_pam_body_lies_on_its_route_from_its_mount_segment():
         np.testing.assert_allclose(covered, np.minimum(length, total), atol=1e-12)
 
 
+def test_pam_body_anchored_end_and_floating_margin_by_hand():
+    """pamkin.pam_body: fixed_ends, body_side and pam_capsules' "insertion" end on a hand-built route whose
+    first segment changes length with the pose (0.3 or 0.4 m), then 0.2 m and 0.4 m fixed; placement's
+    margin for a PAM floating between two moving segments (a constant start along the route)."""
+    from types import SimpleNamespace
+
+    from pamkin.pam_body import body_side, fixed_ends, pam_capsules, placement
+
+    pts = np.array([[[0, 0, 0], [0.3, 0, 0], [0.3, 0.2, 0], [0.3, 0.2, 0.4]],
+                    [[-0.1, 0, 0], [0.3, 0, 0], [0.3, 0.2, 0], [0.3, 0.2, 0.4]]], float)
+    assert fixed_ends(pts, 0) == (True, True)           # nothing before the first segment; 0.6 m after it
+    assert fixed_ends(pts, 1) == (False, True)
+    assert fixed_ends(pts, 2) == (False, True)
+    assert body_side(None, True, True) == "origin" and body_side("insertion", True, True) == "insertion"
+    assert body_side("origin", False, True) == "insertion"           # not possible there: the fixed end
+    assert body_side(None, False, False) == "origin"
+    # 0.25 m at the insertion end of the last segment: 0.15..0.4 m up the z leg at both poses
+    got = {j: (A.round(9).tolist(), B.round(9).tolist())
+           for j, (A, B, v) in enumerate(pam_capsules(pts, 2, np.array([0.25, 0.25]), "insertion")) if v.all()}
+    assert got == {2: ([[0.3, 0.2, 0.15]] * 2, [[0.3, 0.2, 0.4]] * 2)}
+    # 0.3 m at the insertion end of segment 1 (0.2 m): moved back 0.1 m onto segment 0
+    ps = pam_capsules(pts, 1, np.array([0.3, 0.3]), "insertion")
+    assert ps[0][2].all() and ps[1][2].all() and not ps[2][2].any()
+    np.testing.assert_allclose(ps[0][0], [[0.2, 0, 0]] * 2, atol=1e-12)
+    with pytest.raises(ValueError, match="side"):
+        pam_capsules(pts, 1, np.array([0.3, 0.3]), "middle")
+    # the last segment (0.4 / 0.5 m) of a route whose first segment moves: the insertion end
+    q = np.array([[[0, 0, 0], [0.3, 0, 0], [0.3, 0.25, 0], [0.3, 0.25, 0.4]],
+                  [[-0.1, 0, 0], [0.3, 0, 0], [0.3, 0.25, 0], [0.3, 0.25, 0.5]]], float)
+    pam = SimpleNamespace(resting_length_m=0.15, pam_at=None)
+    place = placement(q, pam, np.array([0.15, 0.15]), 0.0125)
+    assert (place.segment, place.side) == (2, "insertion") and place.margin == pytest.approx(0.4 - 0.175)
+    # the middle segment (0.25 m) of a route moving on both sides (0.1 / 0.2 m before, 0.1 / 0.15 m after):
+    # the PAM floats between two tendons; 0.15 m + fittings fits at each pose (+0.075 m), but a constant
+    # start along the route must lie >= 0.2 m and end <= 0.1 + 0.25 m: 0.35 − 0.2 − 0.175 = −0.025 m
+    q = np.array([[[0.2, 0, 0], [0.3, 0, 0], [0.3, 0.25, 0], [0.3, 0.25, 0.1]],
+                  [[0.1, 0, 0], [0.3, 0, 0], [0.3, 0.25, 0], [0.3, 0.25, 0.15]]], float)
+    mid = placement(q, pam, np.array([0.15, 0.15]), 0.0125)
+    assert mid.segment == 1 and mid.margin == pytest.approx(-0.025) and not mid.on_one_segment
+    assert mid.side == "origin"
+
+
 def test_random_poses_reproducible_within_rom_and_disjoint(skel):
     rom = load_rom("robot_thesis", "r")
     q1 = random_poses(skel, rom, 2000, seed=0)

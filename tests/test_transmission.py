@@ -1,4 +1,4 @@
-"""A PAM with a 2:1 pulley block (``transmission: 2``): the design file, the robot's lengths and forces
+"""A PAM with a 2:1 or 3:1 pulley block (``transmission: 2`` or ``3``): the design file, the robot's lengths and forces
 against virtual work and finite differences, the optimiser (a known optimum, CasADi = numpy, the
 one-segment stage's reach), the limit check, walking plans, OpenSim export, the audit and the config."""
 
@@ -44,7 +44,7 @@ def test_pam_length_and_tendon_are_inverse():
     from pamkin.design import pam_length, tendon_for
 
     L = np.linspace(0.3, 0.9, 7)
-    for k in (1, 2):
+    for k in (1, 2, 3):
         t = tendon_for(L, 0.2, k, FIT)
         np.testing.assert_allclose(pam_length(L, t, k, FIT), 0.2, atol=1e-15)
         np.testing.assert_allclose(k * (pam_length(L, 0.05, k, FIT) + 2 * FIT) + 0.05, L, atol=1e-15)
@@ -59,29 +59,32 @@ def test_design_file_round_trip_and_bad_values(tmp_path):
     assert again.pam(4).transmission == 2 and again.pam(5).transmission == 1
     d = again.to_dict()
     assert d["pams"][3]["transmission"] == 2 and "transmission" not in d["pams"][4]   # 1 is not written
-    for bad in (3, 0, "2", 1.5, True):
+    d["pams"][3]["transmission"] = 3
+    assert design_from_dict(d, "three.yaml").pam(4).transmission == 3
+    for bad in (4, 0, "2", 1.5, True):
         d["pams"][3]["transmission"] = bad
-        with pytest.raises(DataFileError, match=r"id 4.*transmission must be one of \(1, 2\)"):
+        with pytest.raises(DataFileError, match=r"id 4.*transmission must be one of \(1, 2, 3\)"):
             design_from_dict(d, "bad.yaml")
 
 
-def test_block_lengths_forces_by_virtual_work_and_finite_differences(toy):
-    """With k = 2 the PAM's length is (L − tendon)/2 − 2 fittings; the route's tension is n F / 2, which is
-    what virtual work gives (tension · dL = n F · dl_pam); torques are −tension · dL/dq by central
+@pytest.mark.parametrize("k", [2, 3])
+def test_block_lengths_forces_by_virtual_work_and_finite_differences(toy, k):
+    """With a k:1 block the PAM's length is (L − tendon)/k − 2 fittings; the route's tension is n F / k, which
+    is what virtual work gives (tension · dL = n F · dl_pam); torques are −tension · dL/dq by central
     differences; the moment arms do not depend on k."""
     model, route = toy
     q, _ = model.grid(["angle"], 41, rom=RangeOfMotion({"angle": (-1.2, 1.2)}))
     direct = _robot(model, Pam(1, "d", (), "angle", (), 20, 2, 0.25, 0.05, route))
-    block = _robot(model, Pam(1, "b", (), "angle", (), 20, 2, 0.25, 0.05, route, transmission=2))
+    block = _robot(model, Pam(1, "b", (), "angle", (), 20, 2, 0.25, 0.05, route, transmission=k))
     s1, s2 = direct.evaluate(q), block.evaluate(q)
     L = s1.lengths[:, 0]
     np.testing.assert_array_equal(s2.lengths, s1.lengths)
     np.testing.assert_allclose(s2.moment_arms, s1.moment_arms, atol=0)
-    np.testing.assert_allclose(s2.pam_lengths[:, 0], (L - 0.05) / 2 - 2 * FIT, atol=1e-15)
+    np.testing.assert_allclose(s2.pam_lengths[:, 0], (L - 0.05) / k - 2 * FIT, atol=1e-15)
     np.testing.assert_allclose(s2.strain[:, 0], (0.25 - s2.pam_lengths[:, 0]) / 0.25, atol=1e-15)
     F = festo.force(s2.strain[:, 0], 0.25, 620e3, 20)
     np.testing.assert_allclose(s2.unit_forces[:, 0], F, rtol=1e-13)
-    np.testing.assert_allclose(s2.forces[:, 0], 2 * F / 2, rtol=1e-13)
+    np.testing.assert_allclose(s2.forces[:, 0], 2 * F / k, rtol=1e-13)
     np.testing.assert_allclose(s1.unit_forces[:, 0] * 2, s1.forces[:, 0], rtol=1e-13)   # k = 1: n F
     # virtual work and the torque, by central differences of the route and PAM lengths
     h = 1e-6
@@ -92,9 +95,11 @@ def test_block_lengths_forces_by_virtual_work_and_finite_differences(toy):
     np.testing.assert_allclose(s2.torques[:, 0, 0], -s2.forces[:, 0] * dL, rtol=1e-6, atol=1e-6)
     # the block's mass is added to the PAM's (an assumption, festo.transmission_mass)
     p = block.pams[0]
-    assert pam_unit_mass(p) == pytest.approx(float(festo.pam_mass(0.25, 20) + festo.transmission_mass(0.25, 20, 2)))
+    assert pam_unit_mass(p) == pytest.approx(float(festo.pam_mass(0.25, 20) + festo.transmission_mass(0.25, 20, k)))
     assert pam_unit_mass(direct.pams[0]) == pytest.approx(float(festo.pam_mass(0.25, 20)))
-    assert float(festo.transmission_mass(0.25, 20, 2)) > 0
+    # the assumed block mass: k − 1 pulleys and a frame along the PAM (festo_models.json)
+    assert float(festo.transmission_mass(0.25, 20, k)) == pytest.approx((k - 1) * 0.12 + 0.30 * 0.25)
+    assert float(festo.transmission_mass(0.25, 20, 1)) == 0.0
 
 
 def test_walking_forces_and_export_follow_the_block(toy):
@@ -204,6 +209,21 @@ def test_block_puts_an_out_of_reach_pam_on_one_segment(toy):
     assert ev.unit_forces.max() <= festo.F_MAX_THEORETICAL[10] + 1e-6
 
 
+def _out_of_reach(model, route, diameters: list[int]):
+    """The out-of-reach toy of the block tests: its range, its direct PAM, half that PAM's torque as the
+    target and a run configuration with blocks on (a lenient mount cost)."""
+    rom = RangeOfMotion({"angle": (-0.6, 0.6)})
+    direct = _robot(model, Pam(1, "t", (), "angle", (), 10, 1, 0.1, 0.0, route))
+
+    def target(q):
+        return 0.5 * direct.evaluate(q).torques[:, 0, :]
+
+    cfg = RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 10.0}, regularization=0.0, mount_blocks=True,
+                    bone_clearance=False, n_primary=31, min_point_distance_m=0.0, regions={"1": [0.0, 0.0, 0.0]},
+                    diameters_mm=diameters)
+    return rom, direct, target, cfg
+
+
 def test_one_segment_stage_tries_a_block_on_the_fixed_route(toy):
     """optimize.mount.mount_block: the direct PAM out of reach of its 0.15 m segment is put on a 2:1 block
     on the same route (the points unchanged) and checked independently (pamkin.robot, 201 poses); with a
@@ -213,15 +233,7 @@ def test_one_segment_stage_tries_a_block_on_the_fixed_route(toy):
 
     model, route = toy
     route = (PathPoint("a", "base", (0.13, -0.20, 0.0)), *route)
-    rom = RangeOfMotion({"angle": (-0.6, 0.6)})
-    direct = _robot(model, Pam(1, "t", (), "angle", (), 10, 1, 0.1, 0.0, route))
-
-    def target(q):
-        return 0.5 * direct.evaluate(q).torques[:, 0, :]
-
-    cfg = RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 10.0}, regularization=0.0, mount_blocks=True,
-                    bone_clearance=False, n_primary=31, min_point_distance_m=0.0, regions={"1": [0.0, 0.0, 0.0]},
-                    diameters_mm=[10, 20])
+    rom, direct, target, cfg = _out_of_reach(model, route, [10, 20])
     seed, prob, sol = _fit(model, route, 1, rom, cfg, target)
     _, info = mount_stage(prob, sol, seed, cfg, model, rom, solution_pam)
     assert info["reason"] == "out of reach"
@@ -253,6 +265,48 @@ def test_one_segment_stage_tries_a_block_on_the_fixed_route(toy):
     assert mount_block(prob, sol, cost, seed, cfg, model, rom, solution_pam)[2] is cost
 
 
+def test_block_goes_to_three_to_one_where_two_to_one_is_out_of_reach(toy):
+    """Segments of at most 0.10 m: the toy's excursion needs a resting length (reach_bound) beyond what they
+    hold at 1:1 and at 2:1, within it at 3:1. mount_block tries 2:1 (at every diameter of the run: 10 mm here), then 3:1, and keeps
+    the first that mounts; pamkin.robot on 201 poses confirms the PAM body on the segment, the strain and
+    rated-force limits and a route tension of a third of the PAM's force."""
+    from pamkin.optimize.mount import BLOCKS, mount_block, mount_stage, reach_bound
+    from pamkin.optimize.run import solution_pam
+    from pamkin.pam_body import route_positions, segment_names
+
+    model, route = toy
+    route = (PathPoint("a", "base", (0.084, -0.192, 0.0)), route[0], PathPoint("v", "base", (0.03, -0.22, 0.0)),
+             route[2])
+    rom, direct, target, cfg = _out_of_reach(model, route, [10])
+    L = direct.evaluate(model.grid(["angle"], 201, rom=rom)[0]).lengths[:, 0]
+    need = {k: reach_bound(L, 0.10, 10, cfg, FIT, k) for k in (1, 2, 3)}
+    assert BLOCKS == (2, 3) and need[2][0] > need[2][1] > need[3][0]
+    seed, prob, sol = _fit(model, route, 1, rom, cfg, target)
+    _, info = mount_stage(prob, sol, seed, cfg, model, rom, solution_pam)
+    assert info["reason"] == "out of reach"
+    got, p3, out = mount_block(prob, sol, info, seed, cfg, model, rom, solution_pam)
+    assert out["mounted"] and out["transmission"] == 3 and p3.k == 3, out
+    assert out["block_tried"][0] == "with a 2:1 pulley block on the same route: 10 mm: out of reach"
+    assert out["line"].startswith(f"on one straight segment {out['segment']} with a 3:1 pulley block")
+    assert "out of reach at 1:1, on a 2:1 pulley block on the same route: 10 mm: out of reach" in out["line"]
+    np.testing.assert_allclose(np.array(got.points), np.array(sol.points), atol=0)
+    pam = solution_pam(dataclasses.replace(seed, transmission=3), p3.finalize(got))
+    assert pam.transmission == 3
+    q, _ = model.grid(["angle"], 201, rom=rom)
+    robot = _robot(model, pam)
+    ev = robot.evaluate(q)
+    pts = route_positions(robot.paths, model.kinematics.forward(q), 0)
+    j = segment_names(pam).index(out["segment"])
+    seg = np.linalg.norm(pts[:, j + 1] - pts[:, j], axis=1)
+    assert seg.min() < need[2][0] + 2 * FIT         # a 2:1 PAM would not fit on it
+    assert (seg - np.maximum(pam.resting_length_m, ev.pam_lengths[:, 0]) - 2 * FIT).min() >= -1e-6
+    d = pam.diameter_mm
+    assert ev.strain.max() <= min(festo.kmax(pam.resting_length_m, d), festo.max_contraction(d)) + 1e-6
+    assert ev.strain.min() >= -festo.max_pretension(d) - 1e-6
+    assert ev.unit_forces.max() <= festo.F_MAX_THEORETICAL[d] + 1e-6
+    np.testing.assert_allclose(ev.forces[:, 0], ev.unit_forces[:, 0] / 3, rtol=1e-13)
+
+
 def test_config_transmission_table(tmp_path):
     f = tmp_path / "c.toml"
     f.write_text('[transmission]\n"4" = 2\n')
@@ -271,9 +325,10 @@ def test_config_transmission_table(tmp_path):
     s1 = PamRobot(Design("1", (one.pam(12),)), sides=("r",)).evaluate(q).strain
     s2 = PamRobot(Design("2", (two.pam(12),)), sides=("r",)).evaluate(q).strain
     np.testing.assert_allclose(s2, s1, atol=1e-12)
-    f.write_text('[transmission]\n"4" = 2\n')
     f.write_text('[transmission]\n"4" = 3\n')
-    with pytest.raises(DataFileError, match=r"transmission\.4: must be one of \(1, 2\)"):
+    assert load_config(f).apply_transmission(thesis).pam(4).transmission == 3
+    f.write_text('[transmission]\n"4" = 4\n')
+    with pytest.raises(DataFileError, match=r"transmission\.4: must be one of \(1, 2, 3\)"):
         load_config(f)
     f.write_text('[transmission]\n"p4" = 2\n')
     with pytest.raises(DataFileError, match=r"transmission\.p4: keys are actuator ids"):

@@ -43,13 +43,14 @@ def add_parsers(sub) -> None:
                     "re-checked on 2000 more poses per actuator, then every PAM put on one straight segment "
                     "of its fixed route (resting and tendon length re-solved) where its fit allows, or, where "
                     "that narrowly fails, with its points freed again in a few bone rounds, or, where its "
-                    "stroke is out of reach of any segment, on a 2:1 pulley block, the others "
+                    "stroke is out of reach of any segment, on a 2:1 pulley block (3:1 where 2:1 fails), the others "
                     "named with the reason; actuators whose fit is still worst (objective > 1) get their other "
                     "diameters through the bone rounds too and keep the best; blocks come off again where "
                     "they take the estimated mass above 22 kg; then a "
                     "walking check (pressure plans of the walking trial between its frames; actuators at the "
-                    "pressure limit re-sized within the budget while fewer than 90 percent are feasible); about 10 "
-                    "minutes on 2 cores. "
+                    "pressure limit re-sized within the budget while fewer than 90 percent are feasible); last, "
+                    "each PAM on one segment is anchored at the end of its segment (pam_at) that leaves the "
+                    "fewest intersecting PAM pairs where the route allows either; about 10 minutes on 2 cores. "
                     "examples/optimize_fast.toml is the earlier 2.5-minute fit. Writes a run folder "
                     "(design.yaml, summary.json, log.txt, before_after.png) and audits the result next to "
                     "the thesis design (pamkin audit --quick); --apply also writes the design into "
@@ -191,7 +192,7 @@ def thesis_quick_audit():
 
 
 LEGEND = """\
-Columns: id = actuator; PAM = its name; d x n = Festo diameter [mm] x PAMs in parallel (/2: on a 2:1 pulley
+Columns: id = actuator; PAM = its name; d x n = Festo diameter [mm] x PAMs in parallel (/k: on a k:1 pulley
 block, pamkin.design transmission); rest = resting
 length [m]; tendon = artificial tendon [m]; NRMSE = RMS(robot - human torque) / human peak over the
 primary coordinate's 1-D sweep (81 samples, independent numpy check; the progress lines' "fit NRMSE"

@@ -73,7 +73,7 @@ def sizing_rows(robot, method: str) -> list[dict]:
             row.update(diameter_mm=p.diameter_mm, n_parallel=p.n_parallel, resting_length_m=p.resting_length_m,
                        tendon_length_m=p.tendon_length_m, transmission=p.transmission, feasible=p.tendon_length_m >= 0,
                        note=("" if p.tendon_length_m >= 0 else "negative tendon: PAM longer than its route")
-                       + ("on a 2:1 pulley block" if p.transmission != 1 else ""))
+                       + (f"on a {p.transmission}:1 pulley block" if p.transmission != 1 else ""))
         elif method == "thesis":
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", SizingFallbackWarning)
@@ -86,7 +86,7 @@ def sizing_rows(robot, method: str) -> list[dict]:
             row.update(diameter_mm=s.diameter_mm, n_parallel=s.n_parallel, resting_length_m=s.rest_length,
                        tendon_length_m=s.tendon_length, feasible=s.feasible, note=s.reason if not s.feasible else "")
         if method != "design" and p.transmission != 1:
-            row["note"] = (row["note"] + "; " if row["note"] else "") + "sized as a direct PAM (the design has a 2:1 block)"
+            row["note"] = (row["note"] + "; " if row["note"] else "") + f"sized as a direct PAM (the design has a {p.transmission}:1 block)"
         rows.append(row)
     return rows
 

@@ -1,0 +1,98 @@
+"""Where a PAM sits on its route (``pam_at``): the design file, the audit's PAM bodies and the optimiser's
+choice of ends (optimize.pam_clearance.choose_ends) on two PAMs side by side on the femur."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import pamkin
+from pamkin.audit import AuditOptions, audit_design
+from pamkin.design import Design, Pam, design_from_dict, load_design, save_design
+from pamkin.errors import DataFileError
+from pamkin.osim import PathPoint
+from pamkin.rom import load_rom
+
+
+def _pam(i: int, x: float, pam_at: str | None = None) -> Pam:
+    """A 20 mm PAM on a femur-fixed route: 0.30 m then 0.05 m down the thigh, 10 mm apart in x per PAM;
+    its body (0.10 m PAM + 2 × 12.5 mm fittings) sits at the top or the bottom of the first segment."""
+    pts = (PathPoint("a", "femur_r", (x, -0.05, 0.03)), PathPoint("b", "femur_r", (x, -0.35, 0.03)),
+           PathPoint("c", "femur_r", (x, -0.40, 0.03)))
+    return Pam(i, f"toy {i}", ("vas_med_r",), "knee_angle_r", (), 20, 1, 0.10, 0.35 - 0.025 - 0.10, pts,
+               pam_at=pam_at)
+
+
+def test_design_file_keeps_pam_at(tmp_path):
+    des = load_design("thesis")
+    p = dataclasses.replace(des.pam(12), pam_at="insertion")
+    again = load_design(save_design(des.replace_pam(p), tmp_path / "d.yaml"))
+    assert again.pam(12).pam_at == "insertion" and again.pam(13).pam_at is None
+    d = again.to_dict()
+    assert d["pams"][11]["pam_at"] == "insertion" and "pam_at" not in d["pams"][12]
+    d["pams"][11]["pam_at"] = "middle"
+    with pytest.raises(DataFileError, match=r"id 12.*pam_at must be one of \('origin', 'insertion'\)"):
+        design_from_dict(d, "bad.yaml")
+
+
+def _pairs(des: Design) -> int:
+    opts = AuditOptions(n_random=40, gait_ik=None, gait_plan=False, n_geometry=40, n_sweep=5, n_grid=3,
+                        segment_step_m=0.05)
+    res = audit_design(des, options=opts)
+    assert all(r["on_one_segment"] and r["mount_segment"] == "a->b" for r in res.pams)
+    return res.summary["pam_pairs_intersecting"], [r["pam_at"] for r in res.pams]
+
+
+def test_audit_puts_the_body_at_its_end_and_choose_ends_separates_the_pair():
+    """Both bodies at the top of the thigh (the default, origin end: both ends of a->b are fixed, the route
+    being on one bone) lie 10 mm apart with 15 mm radii: the audit counts the pair. choose_ends moves one
+    to the bottom end (the bodies 0.05 m apart along the thigh): the audit counts none; asking for the
+    insertion end by hand gives the same bodies."""
+    from pamkin.optimize.pam_clearance import choose_ends
+
+    both = Design("toy", (_pam(1, 0.0), _pam(2, 0.01)), rom="robot_thesis")
+    assert _pairs(both) == (1, ["origin", "origin"])
+    chosen, lines = choose_ends(both, pamkin.gait2392(), load_rom("robot_thesis", "r"), seed=0, n_random=20)
+    sides = sorted(p.pam_at for p in chosen.pams)
+    assert sides == ["insertion", "origin"], lines
+    assert lines[-1].startswith("PAM ends: intersecting pairs at the run's check poses: same side 1 -> 0")
+    moved = next(p for p in chosen.pams if p.pam_at == "insertion")
+    assert any(f"actuator {moved.id} toy {moved.id} anchored at the insertion end" in s for s in lines)
+    assert _pairs(chosen)[0] == 0
+    by_hand = Design("toy", (_pam(1, 0.0), _pam(2, 0.01, "insertion")), rom="robot_thesis")
+    assert _pairs(by_hand) == (0, ["origin", "insertion"])
+    # the routes, sizes and so the torques do not change
+    q = np.zeros((3, len(pamkin.gait2392().coordinates)))
+    from pamkin.robot import PamRobot
+    np.testing.assert_array_equal(PamRobot(chosen, sides=("r",)).evaluate(q).torques,
+                                  PamRobot(both, sides=("r",)).evaluate(q).torques)
+
+
+def test_view_draws_the_pam_at_its_end():
+    """pamkin.view draws the PAM (fittings excluded) where the audit puts its body: on a->b from the top
+    (origin end) for PAM 1, ending one fitting above b (insertion end) for PAM 2 — the set_transform of each
+    cylinder in the page against the route points by hand (float32 in the page)."""
+    import base64
+    import re
+
+    import umsgpack
+
+    from pamkin.robot import PamRobot
+    from pamkin.view import build_view
+
+    human = pamkin.gait2392()
+    des = Design("toy", (_pam(1, 0.0), _pam(2, 0.01, "insertion")), rom="robot_thesis")
+    robot = PamRobot(des, human)
+    html = build_view(human, robot).html()
+    cmds = [umsgpack.unpackb(base64.b64decode(b)) for b in re.findall(r'^"([A-Za-z0-9+/=]+)",?$', html, re.MULTILINE)]
+    tf = {c["path"]: np.array(c["matrix"], float).reshape(4, 4).T for c in cmds if c.get("type") == "set_transform"}
+    X, _ = robot.paths.point_positions(human.kinematics.forward(np.zeros((1, len(human.coordinates)))))
+    fit, pam_len = des.fitting_length_m, 0.10                       # at rest at q = 0 (tendon chosen so)
+    for k, (start, name) in enumerate(((fit, "pam01_r"), (0.30 - fit - pam_len, "pam02_r"))):
+        A, B = X[0, 3 * k], X[0, 3 * k + 1]
+        u = (B - A) / np.linalg.norm(B - A)
+        T = tf[f"/meshcat/pamkin/robot/pams/{name}/pam/s0"]
+        np.testing.assert_allclose(T[:3, 3], A + (start + pam_len / 2) * u, atol=2e-6)
+        assert np.linalg.norm(T[:3, 1]) == pytest.approx(pam_len, abs=2e-6)      # length scale on the y axis
