@@ -41,7 +41,7 @@ import numpy as np
 
 from pamkin import festo
 from pamkin.design import Pam, pam_length, tendon_for
-from pamkin.pam_body import body_room, segment_names
+from pamkin.pam_body import segment_margin, segment_names
 from pamkin.errors import RangeWarning
 from pamkin.paths import PathSet
 
@@ -54,7 +54,9 @@ N_SEGMENTS = 2
 
 def held_out_margin(pam: Pam, model, q: np.ndarray, segment: int, fitting: float) -> float:
     """Smallest room [m] left on route segment ``segment`` by the PAM body (max(resting, actual length)
-    + both fittings) over the poses ``q`` (negative: it does not fit) — the audit's measure."""
+    + both fittings) over the poses ``q`` (negative: it does not fit), at one constant place along the route
+    where the route moves on both sides of the segment — the audit's measure
+    (:func:`pamkin.pam_body.segment_margin`)."""
     kin = model.kinematics
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RangeWarning)
@@ -62,9 +64,8 @@ def held_out_margin(pam: Pam, model, q: np.ndarray, segment: int, fitting: float
         state = kin.forward(q, warn_range=False)
         X, _ = ps.point_positions(state)
         L = ps.evaluate(state, moment_arms=False).lengths[:, 0]
-    seg = np.linalg.norm(X[:, segment + 1] - X[:, segment], axis=1)
     pam_len = pam_length(L, pam.tendon_length_m, pam.transmission, fitting)
-    return float(np.min(body_room(seg, pam.resting_length_m, pam_len, fitting)))
+    return segment_margin(X, segment, pam.resting_length_m, pam_len, fitting)
 
 
 def reach_bound(L: np.ndarray, seg_min: float, diameter: int, cfg, fitting: float,

@@ -22,7 +22,7 @@ import numpy as np
 from .paths import PathSet
 
 __all__ = ["PAM_AT", "Placement", "body_interval", "body_room", "body_side", "fixed_ends", "mount_segment", "pam_capsules",
-           "placement", "route_positions", "segment_names"]
+           "placement", "route_positions", "segment_margin", "segment_names"]
 
 #: The ends of its mount segment a PAM may be anchored at (``pam_at`` of a design's PAM).
 PAM_AT = ("origin", "insertion")
@@ -149,16 +149,23 @@ def placement(pts: np.ndarray, pam, pam_len: np.ndarray, fitting_length: float) 
     with PAM lengths ``pam_len`` (S,) [m] — what ``pamkin audit``, the optimiser's PAM–PAM checks and the
     viewer put where."""
     seg_len = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=2)
-    room = body_room(seg_len, pam.resting_length_m, pam_len, fitting_length)
-    j, margin = mount_segment(room)
+    j, margin = mount_segment(body_room(seg_len, pam.resting_length_m, pam_len, fitting_length))
     if margin < 0:
         return Placement(j, margin, "origin")
-    ends = fixed_ends(pts, j)
-    if not any(ends):
-        # both sides of the segment change length: the PAM floats between two tendons of fixed length, so
-        # its start along the route is one constant for every pose: after the segment's latest start and
-        # before its earliest end less the body
-        _, _, cum = _cumulative(pts)
-        need = room[:, j] - seg_len[:, j]                      # −(body length) at every pose
-        margin = min(margin, float(np.min(cum[:, j + 1] + need) - np.max(cum[:, j])))
-    return Placement(j, margin, body_side(pam.pam_at, *ends) if margin >= 0 else "origin")
+    margin = segment_margin(pts, j, pam.resting_length_m, pam_len, fitting_length)
+    return Placement(j, margin, body_side(pam.pam_at, *fixed_ends(pts, j)) if margin >= 0 else "origin")
+
+
+def segment_margin(pts: np.ndarray, j: int, resting_length: float, pam_len: np.ndarray, fitting_length: float) -> float:
+    """Least room [m] the PAM body leaves on segment ``j`` of the route ``pts`` (S, P, 3) over the S poses
+    (:func:`body_room`; negative: it does not fit). Where the route changes length on both sides of the
+    segment (:func:`fixed_ends`) the PAM floats between two tendons of fixed length, so its start along the
+    route is one constant for every pose — after the segment's latest start and before its earliest end
+    less the body — and the margin is the smaller of the two."""
+    _, L, cum = _cumulative(pts)
+    room = body_room(L[:, j], resting_length, pam_len, fitting_length)
+    margin = float(np.min(room))
+    if margin >= 0 and not any(fixed_ends(pts, j)):
+        body = L[:, j] - room
+        margin = min(margin, float(np.min(cum[:, j + 1] - body) - np.max(cum[:, j])))
+    return margin
