@@ -384,7 +384,7 @@ def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None):
     if not info.get("mounted"):
         before = (best, prob, info)
         best, prob, info = mount_block(prob, best, info, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam)
-        if info.get("transmission") == 2:
+        if info.get("transmission", 1) > 1:
             direct = before
     return best, prob, info, direct
 

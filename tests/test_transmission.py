@@ -305,6 +305,18 @@ def test_block_goes_to_three_to_one_where_two_to_one_is_out_of_reach(toy):
     assert ev.strain.min() >= -festo.max_pretension(d) - 1e-6
     assert ev.unit_forces.max() <= festo.F_MAX_THEORETICAL[d] + 1e-6
     np.testing.assert_allclose(ev.forces[:, 0], ev.unit_forces[:, 0] / 3, rtol=1e-13)
+    # the run keeps the direct PAM beside the 3:1 block, so the mass budget can take the block off again
+    from pamkin.optimize import run as R
+
+    saved = dict(R._STATE)
+    try:
+        R._STATE.update(human=model, rom=rom)
+        got2, _, info2, direct = R._mount(prob, sol, seed, dataclasses.replace(cfg, mount=True))
+    finally:
+        R._STATE.clear()
+        R._STATE.update(saved)
+    assert info2["transmission"] == 3 and got2.objective == got.objective
+    assert direct is not None and direct[0] is sol and direct[2]["reason"] == "out of reach"
 
 
 def test_config_transmission_table(tmp_path):
