@@ -254,6 +254,9 @@ def test_one_segment_stage_tries_a_block_on_the_fixed_route(toy):
     kept, p3, out2 = mount_block(prob, sol, info, seed, strict, model, rom, solution_pam)
     assert kept is sol and p3 is prob and not out2.get("mounted")
     assert "with a 2:1 pulley block on the same route: 10 mm:" in out2["line"]
+    # every diameter fit the 2:1 block at a fit cost: a 3:1 block (a third of the force) is not tried
+    assert out2["block_tried"] == ["with a 2:1 pulley block on the same route: 10 mm: fit cost (root +0.000), "
+                                   "20 mm: fit cost (root +0.000)"]
     off = dataclasses.replace(cfg, mount_blocks=False)
     assert mount_block(prob, sol, info, seed, off, model, rom, solution_pam)[2] is info
     # tried where the stage found the PAM infeasible at 1:1 too (a block halves the stroke the limits see),
