@@ -49,20 +49,6 @@ def pam_bodies(design, model, q: np.ndarray) -> list[Body]:
     return out
 
 
-def body_distance(a: Body, b: Body) -> float:
-    """Smallest signed distance [m] between two PAM bodies over the poses (negative: they intersect)."""
-    from pamkin.bones import capsule_pair_overlap
-
-    best = np.inf
-    for A, B, va in a.pieces:
-        for C, D, vb in b.pieces:
-            ok = va & vb
-            if ok.any():
-                d, _ = capsule_pair_overlap(A[ok], B[ok], a.radius, C[ok], D[ok], b.radius, 1e-4)
-                best = min(best, d)
-    return float(best)
-
-
 def segment_point_distance(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distances (S, K) from points P (S, K, 3) to segments A–B (S, 3) and the closest points (S, K, 3)."""
     AB = (B - A)[:, None, :]
@@ -105,8 +91,8 @@ def choose_ends(design, model, rom, seed: int = 0, n_random: int = ENDS_RANDOM):
     """
     import dataclasses
 
-    from pamkin.audit import random_poses
-    from pamkin.bones import capsule_pair_overlap
+    from pamkin.audit import CLEARANCE_TOLERANCE, random_poses
+    from pamkin.bones import body_pair_distance
     from pamkin.pam_body import fixed_ends, pam_capsules, placement, route_positions
     from pamkin.robot import PamRobot
 
@@ -142,13 +128,8 @@ def choose_ends(design, model, rom, seed: int = 0, n_random: int = ENDS_RANDOM):
             for side in options[c % n]:
                 caps[(key, c, side)] = pam_capsules(pts, places[c % n].segment, ps.pam_lengths[:, c] + fit, side)
 
-    def hit(ca, cb, ra, rb) -> bool:
-        for A, B, va in ca:
-            for C, D, vb in cb:
-                ok = va & vb
-                if ok.any() and capsule_pair_overlap(A[ok], B[ok], ra, C[ok], D[ok], rb, 1e-4)[0] < -1e-4:
-                    return True
-        return False
+    def hit(ca, cb, ra, rb) -> bool:          # the audit's count: an overlap deeper than its tolerance
+        return body_pair_distance(ca, cb, ra, rb, CLEARANCE_TOLERANCE)[0] < -CLEARANCE_TOLERANCE
 
     memo: dict = {}
 

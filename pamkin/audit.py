@@ -663,7 +663,7 @@ def _clearance(robot: PamRobot, des: Design, kin_state: dict, pam_state: dict, m
     Same side (right): over the random poses and the gait; left–right: over the gait.
     Returns ``(pairs, pairs_lr, capsules)`` with ``{(a, b): (distance [m], sample)}``.
     """
-    from .bones import capsule_pair_overlap  # noqa: PLC0415
+    from .bones import body_pair_distance  # noqa: PLC0415
 
     n = len(des.pams)
     radius = [festo.outer_diameter(p.diameter_mm) / 2 for p in des.pams]
@@ -681,18 +681,7 @@ def _clearance(robot: PamRobot, des: Design, kin_state: dict, pam_state: dict, m
             caps[key][c] = pam_capsules(pts, mounts[k].segment, length, mounts[k].side)
 
     def closest(ca: list, cb: list, ra: float, rb: float) -> tuple[float, int]:
-        best, arg = np.inf, -1
-        for A, B, va in ca:
-            for C, D, vb in cb:
-                ok = va & vb
-                if not ok.any():
-                    continue
-                d, s = capsule_pair_overlap(A[ok], B[ok], ra, C[ok], D[ok], rb, CLEARANCE_TOLERANCE)
-                if d < best:
-                    best, arg = d, s
-                if best < -CLEARANCE_TOLERANCE:
-                    return best, arg
-        return best, arg
+        return body_pair_distance(ca, cb, ra, rb, CLEARANCE_TOLERANCE)
 
     pairs: dict = {}
     pairs_lr: dict = {}

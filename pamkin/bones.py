@@ -371,3 +371,27 @@ def capsule_pair_overlap(A: np.ndarray, B: np.ndarray, ra: float, C: np.ndarray,
         if dist < -tolerance:
             break
     return best, arg
+
+
+def body_pair_distance(pieces_a: list, pieces_b: list, ra: float, rb: float, tolerance: float = 1e-4
+                       ) -> tuple[float, int]:
+    """Smallest signed distance between two moving PAM bodies given as capsule pieces
+    (:func:`pamkin.pam_body.pam_capsules`: ``(A, B, valid)`` per route segment, (S, 3), (S, 3), (S,)) of
+    radii ``ra``, ``rb`` over the samples where both pieces are present — up to the first overlap deeper
+    than ``tolerance`` (:func:`capsule_pair_overlap`).
+
+    Returns:
+        ``(distance, sample)``: [m] and the sample's index (``+inf``, -1 when the bodies never come close).
+    """
+    best, arg = np.inf, -1
+    for A, B, va in pieces_a:
+        for C, D, vb in pieces_b:
+            ok = va & vb
+            if not ok.any():
+                continue
+            d, s = capsule_pair_overlap(A[ok], B[ok], ra, C[ok], D[ok], rb, tolerance)
+            if d < best:
+                best, arg = d, (int(np.flatnonzero(ok)[s]) if s >= 0 else -1)
+            if best < -tolerance:
+                return best, arg
+    return best, arg

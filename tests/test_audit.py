@@ -122,6 +122,30 @@ def test_capsule_pair_overlap_is_the_smallest_distance_over_samples():
         assert brute[s] == pytest.approx(dist, abs=1e-12)
 
 
+def test_body_pair_distance_by_hand():
+    """pamkin.bones.body_pair_distance over two bodies, pieces present at some samples only: the overlap of
+    parallel axes 40 mm apart with 15 + 30 mm radii (−5 mm) at the one sample where that piece is present
+    (its index in the full sample set); +inf where the bodies never come within their radii or never are
+    present together."""
+    from pamkin.bones import body_pair_distance
+
+    S = 4
+    x = np.array([0.0, 0.1, 0.2, 0.3])                    # the bodies move along x together
+    A = np.stack([x, np.zeros(S), np.zeros(S)], axis=1)
+    piece = (A, A + [0, 0.2, 0], np.array([True, True, True, True]))
+    far = (A + [0, 0, 0.08], A + [0, 0.2, 0.08], np.array([True, False, True, False]))
+    near = (A + [0, 0, 0.04], A + [0, 0.2, 0.04], np.array([False, False, False, True]))
+    d, s = body_pair_distance([piece], [far, near], 0.015, 0.03)
+    assert d == pytest.approx(0.04 - 0.045, abs=1e-12) and s == 3
+    assert body_pair_distance([piece], [far], 0.015, 0.03) == (np.inf, -1)
+    gone = (near[0], near[1], np.zeros(S, bool))
+    assert body_pair_distance([piece], [gone], 0.015, 0.03) == (np.inf, -1)
+    # overlapping: 20 mm apart with 15 + 30 mm radii, found at the first present sample
+    hit = (A + [0, 0, 0.02], A + [0, 0.2, 0.02], np.array([False, True, True, True]))
+    d, s = body_pair_distance([piece], [hit], 0.015, 0.03)
+    assert d == pytest.approx(0.02 - 0.045, abs=1e-12) and s in (1, 2, 3)
+
+
 def test_cached_hierarchies_give_libigl_signed_distance(skel):
     """BoneSet's distances (AABB tree and winding-number hierarchy built once per mesh) equal
     igl.signed_distance's with the fast-winding-number sign, on points around every Gait2392 bone."""
