@@ -33,6 +33,13 @@ def _limit_text(lim: dict | None) -> str:
     return " and ".join(parts)
 
 
+def _one_segment(row: dict) -> str:
+    """``yes/o`` or ``yes/i`` (the end of its segment the PAM sits at), or ``no``."""
+    if not row["on_one_segment"]:
+        return "no"
+    return "yes/" + {"origin": "o", "insertion": "i"}.get(row.get("pam_at") or "", "?")
+
+
 def scorecard_text(res) -> str:
     """The human-readable scorecard: one row per PAM and one line per criterion (PASS/FAIL)."""
     thr = res.thresholds
@@ -44,22 +51,23 @@ def scorecard_text(res) -> str:
              f"({s['grid_points_per_axis']}²); bones and PAM-PAM checks on {s['geometry_random_poses']} random poses "
              "+ the walking trial",
              "",
-             "Legend: NRMSE = RMS(robot - human) / human peak about the primary coordinate, random poses; "
+             "Legend: d = Festo diameter [mm] (/k: on a k:1 pulley block); NRMSE = RMS(robot - human) / human peak about the primary coordinate, random poses; "
              "worst = largest such error over every coordinate crossed (÷ the same peak); dz = dead-zone % of random "
              "poses/gait frames; bracket = distance of the farthest fixed attachment point from its own bone [mm] "
              "(negative: inside); seg = deepest route segment into any bone [mm]; 1seg = PAM fits on one straight "
-             "segment; F/rated = peak force per unit / Festo rated force; sens = primary-torque change for a 1 mm "
+             "segment (o/i: at its origin/insertion end, pam_at); F/rated = peak force per unit / Festo rated force; sens = primary-torque change for a 1 mm "
              "attachment error [% of human peak]; x = actuators whose PAM bodies it intersects.",
              "",
-             f"{'id':>3} {'PAM':26s} {'d':>3} {'n':>2} {'NRMSE':>6} {'worst (coordinate)':>28} {'dz%':>9} "
-             f"{'bracket':>8} {'seg':>6} {'1seg':>4} {'F/rated':>7} {'sens%':>6}  x"]
+             f"{'id':>3} {'PAM':26s} {'d':>4} {'n':>2} {'NRMSE':>6} {'worst (coordinate)':>28} {'dz%':>9} "
+             f"{'bracket':>8} {'seg':>6} {'1seg':>5} {'F/rated':>7} {'sens%':>6}  x"]
     for r in res.pams:
         worst = f"{r['random_worst_coordinate_error']:.3f} ({r['random_worst_coordinate']})"
         dz = f"{100 * r['random_dead_zone_fraction']:.0f}/{100 * max(r.get('gait_dead_zone_fraction', 0), r.get('gait_dead_zone_fraction_left', 0)):.0f}"
         br = "-" if r["max_bracket_m"] is None else f"{1000 * r['max_bracket_m']:.1f}"
-        lines.append(f"{r['id']:>3} {r['name'][:26]:26s} {r['diameter_mm']:>3} {r['n_parallel']:>2} "
+        d = f"{r['diameter_mm']}" + (f"/{r['transmission']}" if r.get("transmission", 1) != 1 else "")
+        lines.append(f"{r['id']:>3} {r['name'][:26]:26s} {d:>4} {r['n_parallel']:>2} "
                      f"{r['random_nrmse']:>6.3f} {worst:>28} {dz:>9} {br:>8} "
-                     f"{1000 * r['max_segment_penetration_m']:>6.1f} {'yes' if r['on_one_segment'] else 'no':>4} "
+                     f"{1000 * r['max_segment_penetration_m']:>6.1f} {_one_segment(r):>5} "
                      f"{r['force_ratio']:>7.2f} {r['sensitivity_pct']:>6.1f}  "
                      f"{','.join(str(i) for i in r['intersects']) or '-'}")
     lines += ["", f"{'criterion':42s} {'value':>10} {'limit':>14}  result"]

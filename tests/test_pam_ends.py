@@ -38,10 +38,15 @@ def test_design_file_keeps_pam_at(tmp_path):
 
 
 def _pairs(des: Design) -> int:
+    from pamkin.audit_report import scorecard_text
+
     opts = AuditOptions(n_random=40, gait_ik=None, gait_plan=False, n_geometry=40, n_sweep=5, n_grid=3,
                         segment_step_m=0.05)
     res = audit_design(des, options=opts)
     assert all(r["on_one_segment"] and r["mount_segment"] == "a->b" for r in res.pams)
+    rows = {int(line.split()[0]): line for line in scorecard_text(res).splitlines() if " toy " in line}
+    for r in res.pams:                    # the scorecard's 1seg column names the end
+        assert f" yes/{r['pam_at'][0]} " in rows[r["id"]]
     return res.summary["pam_pairs_intersecting"], [r["pam_at"] for r in res.pams]
 
 

@@ -379,3 +379,6 @@ def test_audit_reports_unit_force_and_block_mass():
     assert row["peak_force_per_unit_N"] == pytest.approx(ev.unit_forces[:, 0].max(), rel=1e-12)
     assert row["peak_force_per_unit_N"] == pytest.approx(2 * ev.forces[:, 0].max(), rel=1e-12)
     assert row["mass_kg"] == pytest.approx(pam_unit_mass(pam))
+    from pamkin.audit_report import scorecard_text
+
+    assert any(line.split()[:4] == ["27", "Psoas", "20/2", "1"] for line in scorecard_text(res).splitlines())
