@@ -101,3 +101,25 @@ def test_view_draws_the_pam_at_its_end():
         T = tf[f"/meshcat/pamkin/robot/pams/{name}/pam/s0"]
         np.testing.assert_allclose(T[:3, 3], A + (start + pam_len / 2) * u, atol=2e-6)
         assert np.linalg.norm(T[:3, 1]) == pytest.approx(pam_len, abs=2e-6)      # length scale on the y axis
+
+
+def test_audit_names_an_end_the_route_does_not_allow():
+    """pam_at: insertion on a PAM whose route goes on over the knee after its mount segment (a->b on the
+    femur, then to the tibia): no constant tendon keeps it at b, so the audit puts it at a and says so."""
+    from pamkin.audit_report import scorecard_text
+
+    from pamkin.robot import PamRobot
+
+    p = _pam(1, 0.0, "insertion")
+    pts = (*p.points[:2], PathPoint("c", "tibia_r", (0.0, -0.05, 0.03)))
+    q0 = np.zeros((1, len(pamkin.gait2392().coordinates)))
+    L0 = PamRobot(Design("t", (dataclasses.replace(p, points=pts),)), sides=("r",)).evaluate(q0).lengths[0, 0]
+    p = dataclasses.replace(p, points=pts, tendon_length_m=float(L0) - 0.025 - 0.10)   # at rest at q = 0
+    opts = AuditOptions(n_random=40, gait_ik=None, gait_plan=False, n_geometry=40, n_sweep=5, n_grid=3,
+                        segment_step_m=0.05)
+    res = audit_design(Design("toy", (p,), rom="robot_thesis"), options=opts)
+    row = res.pams[0]
+    assert row["on_one_segment"] and row["mount_segment"] == "a->b"
+    assert row["pam_at"] == "origin" and row["pam_at_not_possible"] == "insertion"
+    assert "pam_at not possible (the route on that side of the mount segment changes length, or the PAM is not " \
+           "on one segment), ignored: 1 toy 1 (insertion)" in scorecard_text(res)
