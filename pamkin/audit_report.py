@@ -82,8 +82,8 @@ def scorecard_text(res) -> str:
               f"max bracket {_fmt(1000 * sm['max_bracket_m'])} mm, max force ratio {_fmt(sm['max_force_ratio'])}, "
               f"total PAM length {_fmt(sm['total_pam_length_m'])} m, air {_fmt(sm['air_volume_l'])} l, "
               f"mass {_fmt(sm['mass_kg'])} kg (assumed Festo weights)",
-              *([f"pam_at not possible (the route on that side of the mount segment changes length, or the PAM is "
-                 f"not on one segment), ignored: " + ", ".join(
+              *(["pam_at not possible (the route on that side of the mount segment changes length, or the PAM is "
+                 "not on one segment), ignored: " + ", ".join(
                      f"{r['id']} {r['name']} ({r['pam_at_not_possible']})" for r in res.pams if r.get("pam_at_not_possible"))]
                 if any(r.get("pam_at_not_possible") for r in res.pams) else []),
               *([f"gait: frames within {thr['gait_residual_pct']:g} % per limiting coordinate: " +
