@@ -84,6 +84,9 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      count: the unit budget holds) through the bone rounds and the one-segment
                                  #      stage too, where their fit before the rounds scored less; the lower
                                  #      score after the rounds is kept (0: off)
+    resize_on = "objective"      # (v2) what the re-sizing compares: "objective" (score: fit objective + mass
+                                 #      penalty) or "validation" (primary NRMSE + worst error on 400 poses like
+                                 #      the audit's from the optimiser's own stream, optimize.validation)
     max_mass_kg = 22.0           # (v2, with mount_blocks) the robot's estimated mass (both sides, the audit's:
                                  #      assumed Festo weights and block masses): where the one-segment stage's
                                  #      pulley blocks take it above this, blocks come off again, the least
@@ -123,7 +126,7 @@ _SECTIONS = {
                "bone_seed_start": "bone_seed_start", "bracket_fit": "bracket_fit",
                "max_units": "max_units", "walking_min": "walking_min",
                "pam_clearance": "pam_clearance", "resize_above": "resize_above",
-               "max_mass_kg": "max_mass_kg", "pam_ends": "pam_ends"},
+               "max_mass_kg": "max_mass_kg", "pam_ends": "pam_ends", "resize_on": "resize_on"},
 }
 
 
@@ -196,6 +199,7 @@ class RunConfig:
     resize_above: float = 1.0
     max_mass_kg: float = 22.0
     pam_ends: bool = True
+    resize_on: str = "objective"
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     transmission: dict[str, int] = field(default_factory=dict)
     source: str = ""
@@ -238,6 +242,8 @@ class RunConfig:
         if self.force_model not in ("v3", "v0"):
             raise bad("force_model", f"must be 'v3' (the lab's measured model) or 'v0' (the thesis table), got "
                                      f"{self.force_model!r}")
+        if self.resize_on not in ("objective", "validation"):
+            raise bad("limits.resize_on", f"must be 'objective' or 'validation', got {self.resize_on!r}")
         if self.force_model == "v0" and self.pressure_Pa != 620e3:
             raise bad("force_model", "'v0' is the thesis's 620 kPa table: pressure_Pa must be 620000")
         if not 1 <= self.max_parallel <= 3:

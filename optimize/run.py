@@ -15,6 +15,7 @@ import multiprocessing as mp
 import os
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,7 +23,7 @@ import numpy as np
 
 from pamkin import festo
 from pamkin.design import ROBOT_DESIGN, Design, Pam, load_design, save_design
-from pamkin.errors import PamkinError
+from pamkin.errors import PamkinError, RangeWarning
 from pamkin.urdf_build import ROBOT_URDF, atomic_write, render_robot_urdf
 
 from .config import RunConfig
@@ -654,7 +655,7 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
         raise PamkinError(f"unknown actuator id(s) {unknown}")
     pams = [seed_design.pam(i) for i in ids]
     data = [actuator_data(p, human, rom, cfg, seed_design.fitting_length_m) for p in pams]
-    _STATE.update(cfg=cfg, data=data, human=human, rom=rom)
+    _STATE.update(cfg=cfg, data=data, human=human, rom=rom, validation=None)
     if cfg.bone_mesh:
         from pamkin.bones import BoneSet  # noqa: PLC0415
 
@@ -734,10 +735,19 @@ def resize_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr
           file=stream, flush=True)
     tried = sorted(_map(_finish_choice, tasks, cfg, stream), key=lambda a: (a.id, a.attempts[-1]["diameter_mm"]))
     out = list(results)
+    held_out = _validation() if cfg.resize_on == "validation" else None
     for k in sorted({t[0] for t in tasks}):
         r = results[k]
         lines = []
-        best, best_key = r, (not r.bone.get("clear", True), result_score(r, cfg))
+
+        def key_of(a: ActuatorResult) -> tuple:
+            return (not a.bone.get("clear", True), held_out(a, k) if held_out else result_score(a, cfg))
+
+        def said(a: ActuatorResult) -> str:
+            return (f"objective {a.objective:.4g}, score {result_score(a, cfg):.4g}"
+                    + (f", validation {held_out(a, k):.4g}" if held_out else ""))
+
+        best, best_key = r, key_of(r)
         for alt in tried:
             if alt.id != r.id:
                 continue
@@ -745,10 +755,9 @@ def resize_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr
             if not alt.success or alt.objective is None:
                 lines.append(f"{what}: {alt.status} (not kept)")
                 continue
-            key = (not alt.bone.get("clear", True), result_score(alt, cfg))
-            lines.append(f"{what} -> {_size(alt.pam)}: objective {alt.objective:.4g}, score {key[1]:.4g}"
-                         f"{', not clear of bone' if key[0] else ''} (now {_size(r.pam)}: objective "
-                         f"{r.objective:.4g}, score {result_score(r, cfg):.4g})")
+            key = key_of(alt)
+            lines.append(f"{what} -> {_size(alt.pam)}: {said(alt)}"
+                         f"{', not clear of bone' if key[0] else ''} (now {_size(r.pam)}: {said(r)})")
             if key < best_key:
                 best, best_key = alt, key
         if best is not r:
@@ -761,6 +770,27 @@ def resize_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr
             print(f"actuator {r.id} {r.name}:{line[1:]}", file=stream, flush=True)
         out[k] = dataclasses.replace(best, bone=dict(best.bone, log=list(best.bone.get("log", [])) + lines))
     return out
+
+
+def _validation():
+    """``error(result, k)``: the validation error (:mod:`optimize.validation`: primary NRMSE + worst error about
+    a crossed coordinate, on poses like the audit's from the optimiser's own stream) of actuator ``k``'s
+    result; the poses and human torques are made once per run."""
+    from .validation import validation_error, validation_poses  # noqa: PLC0415
+
+    if _STATE.get("validation") is None:
+        human = _STATE["human"]
+        q = validation_poses(human, _STATE["rom"], _STATE["cfg"].seed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RangeWarning)
+            _STATE["validation"] = (q, human.torques(q))
+    q, T = _STATE["validation"]
+
+    def error(r: ActuatorResult, k: int) -> float:
+        data = _STATE["data"][k]
+        return float(sum(validation_error(r.pam, _STATE["human"], q, T, list(data.crossed or []))))
+
+    return error
 
 
 def mass_pass(seed: Design, results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr

@@ -928,6 +928,14 @@ def test_resize_pass_chooses_the_diameter_on_the_fit_after_the_bone_rounds(monke
     calls.clear()
     assert run_mod.resize_pass(now, dataclasses.replace(cfg, resize_above=10.0), io.StringIO()) == now
     assert calls == []
+    # resize_on = "validation": the held-out error decides (here sartorius' 10 mm try fits its training
+    # poses better but its validation poses worse: 20 mm stays; gracilis' 40 mm the other way round)
+    held = {(6, 10): 0.9, (6, 20): 0.5, (9, 10): 0.1, (9, 40): 0.3, (9, 20): 0.6, (4, 20): 1.0}
+    monkeypatch.setattr(run_mod, "_validation", lambda: lambda r, k: held[(r.id, r.pam.diameter_mm)])
+    out = run_mod.resize_pass(now, dataclasses.replace(cfg, resize_on="validation"), io.StringIO())
+    assert out[0].pam.diameter_mm == 20 and out[0].bone["log"][-1] == "  resize: kept 20 mm x1"
+    assert out[0].bone["log"][-2].endswith(", validation 0.5)") and "score 4.605, validation 0.9 (now" in out[0].bone["log"][-2]
+    assert out[1].pam.diameter_mm == 40 and "  resize: kept the 40 mm try: 40 mm x1 (was 20 mm x1)" in out[1].bone["log"]
 
 
 def test_mass_pass_takes_blocks_off_while_over_the_budget():

@@ -1,0 +1,41 @@
+"""optimize.validation: the run's held-out error equals the audit's per-PAM numbers on the same poses, and
+its poses are like the audit's but never the audit's."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import pamkin
+from pamkin.audit import AuditOptions, audit_design
+from pamkin.design import load_design
+from pamkin.optimize.validation import N_VALIDATION, validation_error, validation_poses
+from pamkin.rom import load_rom
+
+
+def test_validation_error_is_the_audits_nrmse_and_worst_error():
+    human = pamkin.gait2392()
+    des = load_design("v2_seed")
+    res = audit_design(des, options=AuditOptions(n_random=80, gait_ik=None, gait_plan=False, n_geometry=5,
+                                                 n_sweep=5, n_grid=3, segment_step_m=0.1))
+    q = res.details["q_rand"]
+    T = human.torques(q)
+    for k in (0, 3, 8, 23):
+        row = res.pams[k]
+        nrmse, worst = validation_error(des.pams[k], human, q, T, row["coordinates_crossed"], des)
+        assert nrmse == pytest.approx(row["random_nrmse"], rel=1e-9)
+        assert worst == pytest.approx(row["random_worst_coordinate_error"], rel=1e-9)
+
+
+def test_validation_poses_like_the_audits_not_the_audits():
+    from pamkin.audit import random_poses
+
+    human = pamkin.gait2392()
+    rom = load_rom("robot_thesis", "r")
+    q = validation_poses(human, rom)
+    assert q.shape == (N_VALIDATION, len(human.coordinates))
+    audit = random_poses(human, rom, N_VALIDATION)
+    varied = lambda x: {c for i, c in enumerate(human.coordinates) if np.ptp(x[:, i]) > 0}  # noqa: E731
+    assert varied(q) == varied(audit)
+    assert not np.isclose(q[:, None, :], audit[None, :, :]).all(axis=2).any()    # no audit pose among them
+    np.testing.assert_array_equal(q, validation_poses(human, rom))                # reproducible
