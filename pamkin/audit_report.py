@@ -164,7 +164,9 @@ def plot_criteria(res, path: str | os.PathLike) -> Path:
 def audit_view(res, path: str | os.PathLike, geometry_dir: str | None = None) -> Path:
     """A meshcat page of the design at the default pose on the bone meshes: route segments deeper
     than the threshold into bone in red (others green), attachment points inside bone or farther
-    than the bracket threshold from their bone as red spheres (others blue)."""
+    than the bracket threshold from their bone as red spheres (others blue), and each PAM body (its
+    assumed outer diameter, where the audit puts it on its route) translucent: orange where it
+    intersects another PAM's body at some audited pose, grey otherwise."""
     import meshcat  # noqa: PLC0415
     import meshcat.geometry as g  # noqa: PLC0415
 
@@ -182,9 +184,11 @@ def audit_view(res, path: str | os.PathLike, geometry_dir: str | None = None) ->
     bones = BoneSet(skel, geometry_dir or res.samples.get("geometry_dir"))
     bad_pts = sum(r["points_inside_own_bone"] + r["points_over_bracket"] for r in res.pams)
     bad_seg = res.summary["segments_over_2mm"]
+    crowded = sum(1 for r in res.pams if r["intersects"])
     header = (f"<b>pamkin audit: {res.design}</b> &nbsp; red segments: deeper than "
               f"{1000 * thr['segment_penetration_max_m']:.0f} mm into bone at some pose ({bad_seg}); red points: inside "
-              f"their bone or farther than {1000 * thr['bracket_max_m']:.0f} mm from it ({bad_pts}); default pose")
+              f"their bone or farther than {1000 * thr['bracket_max_m']:.0f} mm from it ({bad_pts}); orange PAM "
+              f"bodies: intersect another PAM's at some pose ({crowded}); default pose")
     vis = meshcat.Visualizer(window=StaticWindow(f"pamkin audit {res.design}", header))
     vis["/Grid"].set_property("visible", False)
     vis["/Axes"].set_property("visible", False)
@@ -228,6 +232,31 @@ def audit_view(res, path: str | os.PathLike, geometry_dir: str | None = None) ->
                                  g.MeshLambertMaterial(color=0xD62728 if bad else 0x1F77B4))
             vis[node].set_transform(_translation(X[0, a + i]))
             allpts.append(X[0, a + i][None])
+    # PAM bodies at the default pose, where the audit puts them (mount segment and end over its poses)
+    from .festo import outer_diameter  # noqa: PLC0415
+    from .pam_body import pam_capsules, route_positions  # noqa: PLC0415
+
+    mounts = res.details.get("mounts") or []
+    ps = robot.evaluate(q0)
+    for k, (pam, row) in enumerate(zip(des.pams, res.pams)):
+        if k >= len(mounts):
+            break
+        pts = route_positions(robot.paths, st, k)
+        length = ps.pam_lengths[:, k] + 2 * des.fitting_length_m
+        color = 0xFF7F0E if row["intersects"] else 0x7F7F7F
+        for j, (A, B, valid) in enumerate(pam_capsules(pts, mounts[k].segment, length, mounts[k].side)):
+            L = float(np.linalg.norm(B[0] - A[0]))
+            if not valid[0] or L < 1e-9:
+                continue
+            y = (B[0] - A[0]) / L
+            x = np.cross(y, [0.0, 0.0, 1.0]) if abs(y[2]) < 0.9 else np.cross(y, [1.0, 0.0, 0.0])
+            x /= np.linalg.norm(x)
+            T = np.eye(4)
+            T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, y, np.cross(x, y), 0.5 * (A[0] + B[0])
+            node = f"pamkin/bodies/{pam.key}/s{j}"
+            vis[node].set_object(g.Cylinder(L, outer_diameter(pam.diameter_mm) / 2),
+                                 g.MeshLambertMaterial(color=color, opacity=0.35, transparent=True))
+            vis[node].set_transform(T)
     _frame_camera(vis, np.vstack(allpts))
     path = Path(path)
     atomic_write(path, vis.static_html())

@@ -123,3 +123,41 @@ def test_audit_names_an_end_the_route_does_not_allow():
     assert row["pam_at"] == "origin" and row["pam_at_not_possible"] == "insertion"
     assert "pam_at not possible (the route on that side of the mount segment changes length, or the PAM is not " \
            "on one segment), ignored: 1 toy 1 (insertion)" in scorecard_text(res)
+
+
+def test_audit_view_draws_the_pam_bodies_where_the_audit_puts_them(tmp_path):
+    """pamkin.audit_report.audit_view: a translucent cylinder per PAM body at the default pose, of the assumed
+    outer radius, centred where the audit's body lies (PAM 1 from a, PAM 2 ending at b), orange where the
+    PAM intersects another (here PAM 1 with a PAM 3 beside it), grey otherwise."""
+    import base64
+    import re
+
+    import umsgpack
+
+    from pamkin import festo
+    from pamkin.audit_report import audit_view
+    from pamkin.robot import PamRobot, robot_skeleton
+
+    des = Design("toy", (_pam(1, 0.0), _pam(2, 0.03, "insertion"), _pam(3, -0.01)), rom="robot_thesis")
+    opts = AuditOptions(n_random=40, gait_ik=None, gait_plan=False, n_geometry=40, n_sweep=5, n_grid=3,
+                        segment_step_m=0.05)
+    res = audit_design(des, options=opts)
+    assert [r["intersects"] for r in res.pams] == [[3], [], [1]]
+    html = audit_view(res, tmp_path / "view.html").read_text()
+    cmds = [umsgpack.unpackb(base64.b64decode(b)) for b in re.findall(r'^"([A-Za-z0-9+/=]+)",?$', html, re.MULTILINE)]
+    objs = {c["path"]: c for c in cmds if c.get("type") == "set_object"}
+    tf = {c["path"]: np.array(c["matrix"], float).reshape(4, 4).T for c in cmds if c.get("type") == "set_transform"}
+    skel = robot_skeleton()
+    q0 = skel.default_q[None, :].copy()
+    q0[0, skel.coordinates.index("pelvis_ty")] = 0.0
+    X, _ = PamRobot(des, skel, sides=("r",)).paths.point_positions(skel.kinematics.forward(q0))
+    body = 0.10 + 2 * des.fitting_length_m                         # each PAM at rest at the default pose
+    for k, (start, color) in enumerate(((0.0, 0xFF7F0E), (0.30 - body, 0x7F7F7F), (0.0, 0xFF7F0E))):
+        path = f"/meshcat/pamkin/bodies/pam{k + 1:02d}/s0"
+        geom = objs[path]["object"]["geometries"][0]
+        assert geom["type"] == "CylinderGeometry" and geom["height"] == pytest.approx(body, abs=1e-6)
+        assert geom["radiusTop"] == pytest.approx(festo.outer_diameter(20) / 2)
+        assert objs[path]["object"]["materials"][0]["color"] == color
+        A, B = X[0, 3 * k], X[0, 3 * k + 1]
+        u = (B - A) / np.linalg.norm(B - A)
+        np.testing.assert_allclose(tf[path][:3, 3], A + (start + body / 2) * u, atol=2e-6)
