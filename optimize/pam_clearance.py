@@ -30,20 +30,11 @@ class Body:
 
 def pam_bodies(design, model, q: np.ndarray) -> list[Body]:
     """The right-side PAM bodies of every actuator of ``design`` at poses ``q`` (S, n_coordinates)."""
-    from pamkin.pam_body import pam_capsules, placement, route_positions
-    from pamkin.robot import PamRobot
+    from pamkin.pam_body import pam_capsules, placements
 
-    right = PamRobot(design, model, sides=("r",))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RangeWarning)
-        st = right.evaluate(q)
-        ks = model.kinematics.forward(q, warn_range=False)
     fit = 2 * design.fitting_length_m
     out = []
-    for k, pam in enumerate(design.pams):
-        pts = route_positions(right.paths, ks, k)
-        pam_len = st.pam_lengths[:, k]
-        place = placement(pts, pam, pam_len, design.fitting_length_m)
+    for pam, (place, pts, pam_len) in zip(design.pams, placements(design, model, q)):
         pieces = pam_capsules(pts, place.segment, pam_len + fit, place.side)
         out.append(Body(pam.id, pieces, festo.outer_diameter(pam.diameter_mm) / 2, place.segment))
     return out
@@ -93,27 +84,25 @@ def choose_ends(design, model, rom, seed: int = 0, n_random: int = ENDS_RANDOM):
 
     from pamkin.audit import CLEARANCE_TOLERANCE, random_poses
     from pamkin.bones import body_pair_distance
-    from pamkin.pam_body import fixed_ends, pam_capsules, placement, route_positions
+    from pamkin.design import Design
+    from pamkin.pam_body import fixed_ends, pam_capsules, placements, route_positions
     from pamkin.robot import PamRobot
 
     n = len(design.pams)
-    right = PamRobot(design, model, sides=("r",))
     both = PamRobot(design, model)
     q_r = random_poses(model, rom, n_random, seed, stream=ENDS_STREAM)
     q_g = _walking_midframes(model)
     fit = 2 * design.fitting_length_m
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RangeWarning)
-        q_all = np.vstack([q_r, q_g])
-        st = right.evaluate(q_all)
-        ks = model.kinematics.forward(q_all, warn_range=False)
         sets = {"random": (model.kinematics.forward(q_r, warn_range=False), both.evaluate(q_r))}
         if len(q_g):
             sets["gait"] = (model.kinematics.forward(q_g, warn_range=False), both.evaluate(q_g))
+    # the default ends (no pam_at) at every pose of both sets
+    default = Design(design.name, tuple(dataclasses.replace(p, pam_at=None) for p in design.pams),
+                     design.pressure_Pa, design.force_model, design.fitting_length_m, design.rom)
     options, places = [], []
-    for k, pam in enumerate(design.pams):
-        pts = route_positions(right.paths, ks, k)
-        place = placement(pts, dataclasses.replace(pam, pam_at=None), st.pam_lengths[:, k], design.fitting_length_m)
+    for place, pts, _ in placements(default, model, np.vstack([q_r, q_g])):
         places.append(place)
         if not place.on_one_segment:
             options.append([place.side])

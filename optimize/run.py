@@ -655,7 +655,7 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
         raise PamkinError(f"unknown actuator id(s) {unknown}")
     pams = [seed_design.pam(i) for i in ids]
     data = [actuator_data(p, human, rom, cfg, seed_design.fitting_length_m) for p in pams]
-    _STATE.update(cfg=cfg, data=data, human=human, rom=rom, validation=None)
+    _STATE.update(cfg=cfg, data=data, human=human, rom=rom, validation=None, seed_design=seed_design)
     if cfg.bone_mesh:
         from pamkin.bones import BoneSet  # noqa: PLC0415
 
@@ -788,7 +788,9 @@ def _validation():
 
     def error(r: ActuatorResult, k: int) -> float:
         data = _STATE["data"][k]
-        return float(sum(validation_error(r.pam, _STATE["human"], q, T, list(data.crossed or []))))
+        # the seed design carries the run's pressure, force model and fitting length
+        return float(sum(validation_error(r.pam, _STATE["human"], q, T, list(data.crossed or []),
+                                          _STATE["seed_design"])))
 
     return error
 

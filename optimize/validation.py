@@ -34,7 +34,8 @@ def validation_error(pam: Pam, model, q: np.ndarray, human_torques: np.ndarray, 
                      design: Design | None = None) -> tuple[float, float]:
     """(primary NRMSE, worst error about any of ``coords``) of ``pam`` at poses ``q``: RMS(robot − human
     torque) ÷ the human peak about the primary coordinate; ``human_torques`` (S, n_muscles, n_coordinates)
-    from ``model.torques(q)``."""
+    from ``model.torques(q)``. The PAM's force uses ``design``'s pressure, force model and fitting length
+    (default: a design's defaults, 620 kPa and v3)."""
     from pamkin.robot import PamRobot
 
     base = design or Design("validation", ())

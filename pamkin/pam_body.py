@@ -22,7 +22,7 @@ import numpy as np
 from .paths import PathSet
 
 __all__ = ["PAM_AT", "Placement", "body_interval", "body_room", "body_side", "fixed_ends", "mount_segment", "pam_capsules",
-           "placement", "route_positions", "segment_margin", "segment_names"]
+           "placement", "placements", "route_positions", "segment_margin", "segment_names"]
 
 #: The ends of its mount segment a PAM may be anchored at (``pam_at`` of a design's PAM).
 PAM_AT = ("origin", "insertion")
@@ -169,3 +169,23 @@ def segment_margin(pts: np.ndarray, j: int, resting_length: float, pam_len: np.n
         body = L[:, j] - room
         margin = min(margin, float(np.min(cum[:, j + 1] - body) - np.max(cum[:, j])))
     return margin
+
+
+def placements(design, model, q: np.ndarray) -> list[tuple[Placement, np.ndarray, np.ndarray]]:
+    """For every PAM of ``design`` (right side) at poses ``q`` (S, n_coordinates) of ``model``: its
+    :func:`placement`, its route's point positions (S, P, 3) and its PAM lengths (S,) [m]."""
+    import warnings  # noqa: PLC0415
+
+    from .errors import RangeWarning  # noqa: PLC0415
+    from .robot import PamRobot  # noqa: PLC0415
+
+    right = PamRobot(design, model, sides=("r",))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RangeWarning)
+        st = right.evaluate(q)
+        ks = model.kinematics.forward(q, warn_range=False)
+    out = []
+    for k, pam in enumerate(design.pams):
+        pts = route_positions(right.paths, ks, k)
+        out.append((placement(pts, pam, st.pam_lengths[:, k], design.fitting_length_m), pts, st.pam_lengths[:, k]))
+    return out

@@ -46,7 +46,7 @@ import numpy as np
 
 from ._resources import DEFAULT_GEOMETRY as _DEFAULT_GEOMETRY
 from .errors import ConfigurationError, PamkinError, RangeWarning
-from .pam_body import body_interval, placement, route_positions
+from .pam_body import body_interval, placements, route_positions
 
 __all__ = ["ColorScale", "StaticWindow", "View", "build_view", "screenshot", "simple_bone_meshes"]
 
@@ -503,18 +503,10 @@ def pam_placements(robot) -> list:
     poses of its range of motion — the audit's rule on the first of the audit's random poses. One per
     PAM of the design (the left copy sits where the right one does)."""
     from .audit import random_poses  # noqa: PLC0415
-    from .robot import PamRobot  # noqa: PLC0415
     from .rom import load_rom  # noqa: PLC0415
 
-    model = robot.model
-    q = random_poses(model, load_rom(robot.design.rom, "r"), PLACEMENT_POSES)
-    right = PamRobot(robot.design, model, sides=("r",))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RangeWarning)
-        st = right.evaluate(q)
-        ks = model.kinematics.forward(q, warn_range=False)
-    return [placement(route_positions(right.paths, ks, k), p, st.pam_lengths[:, k], robot.design.fitting_length_m)
-            for k, p in enumerate(robot.design.pams)]
+    q = random_poses(robot.model, load_rom(robot.design.rom, "r"), PLACEMENT_POSES)
+    return [place for place, _, _ in placements(robot.design, robot.model, q)]
 
 
 def _rgb(hex_color: int) -> np.ndarray:

@@ -39,3 +39,20 @@ def test_validation_poses_like_the_audits_not_the_audits():
     assert varied(q) == varied(audit)
     assert not np.isclose(q[:, None, :], audit[None, :, :]).all(axis=2).any()    # no audit pose among them
     np.testing.assert_array_equal(q, validation_poses(human, rom))                # reproducible
+
+
+def test_validation_error_uses_the_designs_pressure():
+    """At 400 kPa (the run's pressure, carried by its seed design) the error is the audit's of that design,
+    not the 620 kPa one."""
+    import dataclasses
+
+    human = pamkin.gait2392()
+    des = dataclasses.replace(load_design("v2_seed"), pressure_Pa=400e3)
+    res = audit_design(des, options=AuditOptions(n_random=60, gait_ik=None, gait_plan=False, n_geometry=5,
+                                                 n_sweep=5, n_grid=3, segment_step_m=0.1))
+    q = res.details["q_rand"]
+    T = human.torques(q)
+    row = res.pams[11]
+    got = validation_error(des.pams[11], human, q, T, row["coordinates_crossed"], des)
+    assert got[0] == pytest.approx(row["random_nrmse"], rel=1e-9)
+    assert got[0] != pytest.approx(validation_error(des.pams[11], human, q, T, row["coordinates_crossed"])[0], rel=1e-3)
