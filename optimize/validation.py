@@ -43,10 +43,11 @@ def validation_error(pam: Pam, model, q: np.ndarray, human_torques: np.ndarray, 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RangeWarning)
         tr = PamRobot(des, model, sides=("r",)).evaluate(q).torques[:, 0, :]
+    from pamkin.audit import torque_metrics
+
     idx = [model.muscles.index(m) for m in pam.human_muscles]
     th = human_torques[:, idx].sum(axis=1)
-    prim = model.coordinates.index(pam.primary_coordinate)
-    peak = max(float(np.max(np.abs(th[:, prim]))), 1e-9)
-    err = {c: float(np.sqrt(np.mean((tr[:, i] - th[:, i]) ** 2))) / peak
-           for c in {*coords, pam.primary_coordinate} for i in [model.coordinates.index(c)]}
-    return err[pam.primary_coordinate], max(err.values())
+    names = model.coordinates
+    prim = names.index(pam.primary_coordinate)
+    m = torque_metrics(th, tr, prim, sorted({*(names.index(c) for c in coords), prim}), names)
+    return m["nrmse"], m["worst_coordinate_error"]

@@ -248,7 +248,11 @@ def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x)))) if x.size else float("nan")
 
 
-def _torque_metrics(th: np.ndarray, tr: np.ndarray, prim: int, coords: list[int], names: list[str]) -> dict:
+def torque_metrics(th: np.ndarray, tr: np.ndarray, prim: int, coords: list[int], names: list[str]) -> dict:
+    """The audit's torque numbers of one PAM: human ``th`` and robot ``tr`` torques (S, n_coordinates) [N·m];
+    ``nrmse`` = RMS error about the primary coordinate ``prim`` ÷ the human peak about it, and per
+    coordinate of ``coords`` (indices into ``names``) the same ratio (``coordinate_errors``), the worst of them
+    (``worst_coordinate``, ``worst_coordinate_error``) and the peaks."""
     peak = float(np.max(np.abs(th[:, prim]))) if len(th) else 0.0
     err = {names[c]: _rms(tr[:, c] - th[:, c]) / peak if peak > 0 else float("nan") for c in coords}
     worst = max(err, key=lambda c: (err[c] if np.isfinite(err[c]) else -1)) if err else ""
@@ -330,7 +334,7 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
         row["coordinates_crossed"] = [names[c] for c in coords]
         for key, st in pam_state.items():
             Th = human_T[key][:, idx].sum(axis=1)
-            m = _torque_metrics(Th, st.torques[:, k], prim, coords, names)
+            m = torque_metrics(Th, st.torques[:, k], prim, coords, names)
             row[f"{key}_nrmse"] = m["nrmse"]
             row[f"{key}_worst_coordinate"] = m["worst_coordinate"]
             row[f"{key}_worst_coordinate_error"] = m["worst_coordinate_error"]
@@ -717,4 +721,4 @@ def _gait_fraction(des: Design, thr: dict, ik: str) -> tuple[float, dict[str, fl
 
 
 __all__ = ["AUDIT_STREAM", "AuditOptions", "AuditResult", "audit_design", "audit_coordinates", "gait_poses",
-           "load_limits", "random_poses"]
+           "load_limits", "random_poses", "torque_metrics"]
