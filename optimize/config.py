@@ -84,6 +84,11 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      count: the unit budget holds) through the bone rounds and the one-segment
                                  #      stage too, where their fit before the rounds scored less; the lower
                                  #      score after the rounds is kept (0: off)
+    block_refit_above = 0.5      # (v2, with mount_blocks and max_units) in the re-sizing: an actuator the one-segment
+                                 #      stage put on a pulley block, whose fit objective is above this (and not above
+                                 #      resize_above), is solved again with a 3:1 block throughout (same diameter and
+                                 #      count: first phase, bone rounds, one-segment stage); the lower score kept,
+                                 #      never a PAM off its straight segment (0: off; optimize.run.block_tasks)
     resize_on = "objective"      # (v2) what the re-sizing compares: "objective" (score: fit objective + mass
                                  #      penalty) or "validation" (primary NRMSE + worst error on 400 poses like
                                  #      the audit's from the optimiser's own stream, optimize.validation)
@@ -125,7 +130,7 @@ _SECTIONS = {
                "one_segment": "one_segment", "one_segment_actuators": "one_segment_actuators", "mount": "mount", "mount_cost": "mount_cost", "mount_blocks": "mount_blocks", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
                "bone_seed_start": "bone_seed_start", "bracket_fit": "bracket_fit",
                "max_units": "max_units", "walking_min": "walking_min",
-               "pam_clearance": "pam_clearance", "resize_above": "resize_above",
+               "pam_clearance": "pam_clearance", "resize_above": "resize_above", "block_refit_above": "block_refit_above",
                "max_mass_kg": "max_mass_kg", "pam_ends": "pam_ends", "resize_on": "resize_on"},
 }
 
@@ -197,6 +202,7 @@ class RunConfig:
     max_units: int = 60
     walking_min: float = 0.9
     resize_above: float = 1.0
+    block_refit_above: float = 0.5
     max_mass_kg: float = 22.0
     pam_ends: bool = True
     resize_on: str = "objective"
@@ -254,7 +260,7 @@ class RunConfig:
         for name in ("multistart", "seed", "multistart_threshold", "weight_primary", "weight_secondary",
                      "regularization", "region_m", "min_point_distance_m", "pretension_scale",
                      "weight_whole_vector", "weight_mass", "n_random", "max_solve_seconds", "sensitivity_pct",
-                     "mount_cost", "resize_above", "max_mass_kg"):
+                     "mount_cost", "resize_above", "block_refit_above", "max_mass_kg"):
             if getattr(self, name) < 0:
                 raise bad(_KEYS[name], f"must be >= 0, got {getattr(self, name)}")
         if self.weight_primary + self.weight_secondary <= 0:

@@ -938,6 +938,97 @@ def test_resize_pass_chooses_the_diameter_on_the_fit_after_the_bone_rounds(monke
     assert out[1].pam.diameter_mm == 40 and "  resize: kept the 40 mm try: 40 mm x1 (was 20 mm x1)" in out[1].bone["log"]
 
 
+def test_resize_pass_tries_blocks_throughout_where_the_stage_put_one(monkeypatch):
+    """optimize.run.resize_pass / block_tasks: an actuator the one-segment stage put on a block (its result
+    before the block kept as ``direct``) with a fit objective above ``block_refit_above`` (not above
+    ``resize_above``) is solved again with a 3:1 block throughout, same diameter and count (task ``(k, key, z, 3)``,
+    ``z`` the direct result's decision vector); the lower score is kept and the mass budget can go back to the
+    block-stage result, then to the direct one. Below the threshold, without a block, or switched off: no try."""
+    from pamkin.design import pam_unit_mass
+
+    cfg = RunConfig(workers=1, resize_above=1.0, block_refit_above=0.5)
+
+    def solved(aid: int, objective: float, k: int = 1, d: int = 20):
+        r = _fake_result(aid, {})
+        r.pam = dataclasses.replace(r.pam, diameter_mm=d, n_parallel=1, transmission=k,
+                                    resting_length_m=r.pam.resting_length_m / k)
+        r.objective, r.bone, r.mount = objective, {"clear": True, "log": []}, {"line": "x"}
+        r.attempts = [{"start": "unit budget choice", "diameter_mm": d}]
+        r.z = np.array([float(aid), float(k)])
+        return r
+
+    now = []
+    for aid, k, obj in ((9, 2, 0.91), (4, 3, 0.8), (1, 2, 0.06), (8, 1, 0.7), (6, 2, 4.3)):
+        r = solved(aid, obj, k)
+        if k > 1:
+            r.direct = solved(aid, obj + 0.5)
+            r.mount = {"line": "x", "mounted": True}
+        now.append(r)
+    # not tried: erector spinae (0.06 <= 0.5), rectus femoris (no block), sartorius (above resize_above:
+    # its other diameters are tried instead)
+    tasks = run_mod.block_tasks(now, cfg)
+    assert [(t[0], t[1], t[3]) for t in tasks] == [(0, (20, 1), 3), (1, (20, 1), 3)]
+    assert [(t[0], t[3]) for t in run_mod.block_tasks(now, dataclasses.replace(cfg, resize_above=0.0))] == \
+        [(0, 3), (1, 3), (4, 3)]
+    assert tasks[0][2] is now[0].direct.z          # the start where the first phase has no fit of that size
+    assert run_mod.block_tasks(now, dataclasses.replace(cfg, block_refit_above=0.0)) == []
+    assert run_mod.block_tasks(now, dataclasses.replace(cfg, mount_blocks=False)) == []
+    # the design's mass given: a try whose added pulleys leave less than the headroom is not made (gracilis'
+    # second pulley at 21.4 kg; biceps femoris is on a 3:1 block already)
+    assert [t[0] for t in run_mod.block_tasks(now, cfg, total_mass=21.0)] == [0, 1]
+    assert [t[0] for t in run_mod.block_tasks(now, cfg, total_mass=21.45)] == [1]
+    monkeypatch.setitem(run_mod._STATE, "seed_design", load_design("thesis"))
+    after = {(9, 3): solved(9, 0.67, 3), (4, 3): solved(4, 0.5, 3)}
+    for r in after.values():
+        r.attempts[-1]["transmission"] = r.pam.transmission
+        r.mount = {"line": "x", "mounted": r.id == 9}
+    monkeypatch.setitem(run_mod._STATE, "first", {k: _fake_result(r.id, {}) for k, r in enumerate(now)})
+    monkeypatch.setitem(run_mod._STATE, "choice", {})
+    calls = []
+
+    def finish(task):
+        k, key, z, t = task
+        calls.append((now[k].id, key, t))
+        return dataclasses.replace(after[(now[k].id, t)])
+
+    monkeypatch.setattr(run_mod, "_finish_choice", finish)
+    stream = io.StringIO()
+    out = run_mod.resize_pass(now, cfg, stream)
+    assert sorted(calls) == [(4, (20, 1), 3), (9, (20, 1), 3)]     # sartorius: no diameter either
+    assert "2 pulley block(s) throughout for 2 actuator(s)" in stream.getvalue()
+    # gracilis: the 3:1 block throughout scores less and is kept; biceps femoris' try scores less too but
+    # leaves its straight segment
+    assert out[0].pam.transmission == 3 and out[0].objective == 0.67
+    assert out[0].attempts[-1]["start"] == run_mod.BONE_RESIZE_START + " (3:1)"
+    assert ("  resize: kept the 20 mm try with the 3:1 block throughout: 20 mm x1 on a 3:1 pulley block (was 20 mm x1 "
+            "on a 2:1 pulley block, its block from the one-segment stage)") in out[0].bone["log"]
+    assert any(line.startswith("  resize: 20 mm x1 on a 3:1 pulley block throughout -> ") for line in out[0].bone["log"])
+    assert out[1].objective == 0.8 and out[1].bone["log"][-1] == "  resize: kept 20 mm x1 on a 3:1 pulley block"
+    assert ", not on one straight segment (now" in out[1].bone["log"][-2]
+    assert out[2] is now[2] and out[3] is now[3]
+    # the mass budget goes back a step at a time: 3:1 throughout -> the stage's 2:1 -> direct
+    assert out[0].direct is now[0] and out[0].direct.direct is now[0].direct
+
+    def mass(p):
+        return 2 * p.n_parallel * pam_unit_mass(p)
+
+    seed = load_design("thesis")
+    total = sum(mass(p) for p in seed.pams if p.id != 9) + mass(out[0].pam)
+    step = mass(out[0].pam) - mass(now[0].pam)
+    assert step > 0
+    (back,) = run_mod.mass_pass(seed, out[:1], dataclasses.replace(cfg, max_mass_kg=total - 0.5 * step), io.StringIO())
+    assert back.pam.transmission == 2 and back.objective == now[0].objective
+    (back,) = run_mod.mass_pass(seed, out[:1], dataclasses.replace(cfg, max_mass_kg=total - step - 1e-3), io.StringIO())
+    assert back.pam.transmission == 1 and back.objective == now[0].direct.objective
+    # within the budget but not its headroom for a warm re-run: the block throughout goes back, the
+    # one-segment stage's block (not a re-sizing try) stays
+    assert run_mod.BLOCK_TRY_HEADROOM_KG == 0.5
+    (back,) = run_mod.mass_pass(seed, out[:1], dataclasses.replace(cfg, max_mass_kg=total + 0.1), io.StringIO())
+    assert back.pam.transmission == 2 and "less 0.5 kg for a warm re-run (blocks throughout)" in back.bone["log"][-1]
+    assert run_mod.mass_pass(seed, now[:1], dataclasses.replace(cfg, max_mass_kg=total + 0.1), io.StringIO())[0] is now[0]
+    assert run_mod.mass_pass(seed, out[:1], dataclasses.replace(cfg, max_mass_kg=total + 0.6), io.StringIO())[0] is out[0]
+
+
 def test_mass_pass_takes_blocks_off_while_over_the_budget():
     """optimize.run.mass_pass: while the design's estimated mass (the audit's, both sides) is above
     ``max_mass_kg``, the 2:1 block that loses the least score per kilogram comes off (the actuator's result
@@ -988,6 +1079,40 @@ def test_mass_pass_takes_blocks_off_while_over_the_budget():
     stream = io.StringIO()
     out = run_mod.mass_pass(seed, results, dataclasses.replace(cfg, max_mass_kg=1.0), stream)
     assert all(r.pam.transmission == 1 for r in out) and "no pulley block is left to take off" in stream.getvalue()
+
+
+@pytest.mark.slow
+def test_default_run_puts_gracilis_on_a_block_throughout(tmp_path):
+    """End to end (the default configuration, gracilis of the v2 seed optimised): the one-segment stage puts
+    its PAM on a 2:1 block on the route fitted without one; the re-sizing solves it again with a 3:1 block
+    throughout and keeps that (lower score). Checked independently on 500 random poses (pamkin.robot,
+    pamkin.pam_body): the saved PAM is on a 3:1 block, on one straight segment with a constant tendon, within
+    Festo's strain limits and rated force."""
+    from pamkin import festo
+    from pamkin.audit import random_poses
+    from pamkin.pam_body import fixed_ends, placements
+    from pamkin.robot import robot_skeleton
+
+    stream = io.StringIO()
+    run(RunConfig(actuators=[9]), tmp_path / "run", stream=stream)
+    out = stream.getvalue()
+    assert "1 pulley block(s) throughout for 1 actuator(s)" in out, out
+    assert re.search(r"actuator 9 Gracilis: resize: kept the 20 mm try with the 3:1 block throughout: 20 mm x1 on a "
+                     r"3:1 pulley block \(was 20 mm x1 on a 2:1 pulley block, its block from the one-segment stage\)", out)
+    sk = robot_skeleton()
+    des = load_design(tmp_path / "run" / "design.yaml", bodies=sk.bodies, coordinates=sk.coordinates)
+    pam = des.pam(9)
+    assert pam.transmission == 3 and pam.diameter_mm == 20
+    q = random_poses(sk, load_rom(des.rom, "r"), 500, 7)
+    k = [p.id for p in des.pams].index(9)
+    place, pts, pam_len = placements(des, sk, q)[k]
+    assert place.on_one_segment and any(fixed_ends(pts, place.segment))
+    ev = PamRobot(Design("g", (pam,), des.pressure_Pa, des.force_model, des.fitting_length_m, des.rom), sk,
+                  sides=("r",)).evaluate(q)
+    eps = ev.strain[:, 0]
+    assert eps.max() <= min(float(festo.kmax(pam.resting_length_m, 20)), festo.max_contraction(20)) + 1e-3
+    assert eps.min() >= -festo.max_pretension(20) - 1e-3
+    assert ev.unit_forces.max() <= festo.F_MAX_THEORETICAL[20] * (1 + 1e-3)
 
 
 def test_default_run_keeps_the_mass_budget(tmp_path):

@@ -209,6 +209,31 @@ def test_block_puts_an_out_of_reach_pam_on_one_segment(toy):
     assert ev.unit_forces.max() <= festo.F_MAX_THEORETICAL[10] + 1e-6
 
 
+@pytest.mark.parametrize("k0,k", [(1, 2), (1, 3), (2, 3)])
+def test_block_start_keeps_the_pam_strain(toy, k0, k):
+    """optimize.run.block_start: a k0:1 solution's decision vector as the start of a k:1 problem — the same
+    route, resting length l0·k0/k, tendon t + 2·fitting·(k0 − k) — gives the same PAM strain at every route
+    length (pamkin.robot, 41 poses); a tendon that would go negative is clipped at 0, and so are the bounds."""
+    from types import SimpleNamespace
+
+    from pamkin.optimize.run import block_start
+
+    model, route = toy
+    q, _ = model.grid(["angle"], 41, rom=RangeOfMotion({"angle": (-1.0, 1.0)}))
+    z = np.array([0.1, 0.2, 0.3, 0.24, 0.09])
+    wide = SimpleNamespace(lbx=np.full(5, -np.inf), ubx=np.full(5, np.inf))
+    z2 = block_start(wide, z, k0, k, FIT)
+    np.testing.assert_array_equal(z2[:3], z[:3])
+    assert z2[3] == pytest.approx(0.24 * k0 / k) and z2[4] == pytest.approx(0.09 + 2 * FIT * (k0 - k))
+    strain = [_robot(model, Pam(1, "t", (), "angle", (), 20, 1, float(zz[3]), float(zz[4]), route, transmission=kk))
+              .evaluate(q).strain[:, 0] for zz, kk in ((z, k0), (z2, k))]
+    np.testing.assert_allclose(strain[1], strain[0], rtol=0, atol=1e-12)
+    z[4] = 0.01
+    assert block_start(wide, z, k0, k, FIT)[4] == 0.0
+    tight = SimpleNamespace(lbx=np.zeros(5), ubx=np.full(5, 0.05))
+    assert block_start(tight, z, k0, k, FIT)[3] == 0.05
+
+
 def _out_of_reach(model, route, diameters: list[int]):
     """The out-of-reach toy of the block tests: its range, its direct PAM, half that PAM's torque as the
     target and a run configuration with blocks on (a lenient mount cost)."""
