@@ -338,16 +338,19 @@ class RunConfig:
 
     def apply_transmission(self, design):
         """The design with the ``[transmission]`` table's ratios put on its PAMs (others unchanged). A PAM whose
-        ratio changes from k to k' keeps its strain at every route length: resting length l0·k/k', tendon
-        t + 2·fitting·(k − k') (clipped at 0) — a start for the optimiser, which solves both again."""
+        ratio changes from k to k' keeps its strain at every route length
+        (:func:`pamkin.design.rescale_for_transmission`) — a start for the optimiser, which solves both again."""
         import dataclasses  # noqa: PLC0415
+
+        from pamkin.design import rescale_for_transmission  # noqa: PLC0415
 
         for key, v in self.transmission.items():
             p = design.pam(int(key))
             k, k2 = p.transmission, int(v)
             if k2 != k:
-                p = dataclasses.replace(p, transmission=k2, resting_length_m=p.resting_length_m * k / k2,
-                                        tendon_length_m=max(p.tendon_length_m + 2 * design.fitting_length_m * (k - k2), 0.0))
+                rest, tendon = rescale_for_transmission(p.resting_length_m, p.tendon_length_m, k, k2,
+                                                        design.fitting_length_m)
+                p = dataclasses.replace(p, transmission=k2, resting_length_m=rest, tendon_length_m=tendon)
             design = design.replace_pam(p)
         return design
 

@@ -47,7 +47,7 @@ import yaml
 from . import festo
 from ._resources import SHARED_DIR, data_file
 from .compare import compare_pam
-from .design import Design, load_design, pam_length, pam_unit_mass
+from .design import Design, load_design, pam_length, pam_unit_mass, pams_mass
 from .errors import ConfigurationError, DataFileError, RangeWarning
 from .model import Model
 from .osim import ConditionalPathPoint, MovingPathPoint, PathPoint
@@ -438,7 +438,7 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
     units = np.array([p.n_parallel for p in des.pams])
     rest = np.array([p.resting_length_m for p in des.pams])
     dia = np.array([p.diameter_mm for p in des.pams])
-    mass = sum(pam_unit_mass(p) * p.n_parallel for p in des.pams) * 2
+    mass = pams_mass(des.pams)
     volume = float(np.sum(units * np.pi * (dia / 2000.0) ** 2 * rest)) * 2
     for row, p in zip(rows, des.pams):
         row["mass_kg"] = pam_unit_mass(p) * p.n_parallel

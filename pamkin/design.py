@@ -197,6 +197,14 @@ def tendon_for(route_length, resting_length, transmission: int, fitting_length: 
     return route_length - transmission * (2 * fitting_length + resting_length)
 
 
+def rescale_for_transmission(resting_length: float, tendon: float, k0: int, k: int, fitting_length: float
+                             ) -> tuple[float, float]:
+    """Resting length and tendon [m] of a PAM moved from a ``k0``:1 to a ``k``:1 transmission so that its
+    strain is the same at every route length: l0·k0/k and tendon + 2·fitting·(k0 − k) (from :func:`pam_length`;
+    the tendon clipped at 0, where the strain then differs)."""
+    return resting_length * k0 / k, max(tendon + 2 * fitting_length * (k0 - k), 0.0)
+
+
 def unit_mass(resting_length: float, diameter_mm: int, transmission: int = 1) -> float:
     """Estimated mass [kg] of one parallel PAM unit of resting length [m] and diameter: the PAM with its
     fittings (:func:`pamkin.festo.pam_mass`) and its transmission (:func:`pamkin.festo.transmission_mass`);
@@ -210,6 +218,12 @@ def unit_mass(resting_length: float, diameter_mm: int, transmission: int = 1) ->
 def pam_unit_mass(pam: Pam) -> float:
     """:func:`unit_mass` of one of a PAM's parallel units [kg]."""
     return unit_mass(pam.resting_length_m, pam.diameter_mm, pam.transmission)
+
+
+def pams_mass(pams) -> float:
+    """Estimated mass [kg] of these PAMs with all their parallel units, on both sides of the robot (the audit's
+    mass, the optimiser's mass budget)."""
+    return 2 * sum(p.n_parallel * pam_unit_mass(p) for p in pams)
 
 
 def _fail(path: str, msg: str) -> DataFileError:
