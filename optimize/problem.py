@@ -34,6 +34,7 @@ from pamkin.paths import path_length, path_moment_arm, point_velocity
 from .bracket import BAND as BRACKET_BAND
 from .config import RunConfig
 from .limit_check import limit_rows
+from .pam_clearance import segment_point_distance
 from .samples import CLEARANCE_MARGIN, CLEARANCE_T, ActuatorData, is_free
 
 
@@ -56,13 +57,6 @@ class Solution:
     z: np.ndarray | None = None
     skip_capsules: bool = False         # checked against the bone meshes instead of the capsules
     mount_segment: int | None = None    # the problem's segment given for the PAM (a warm start's), if any
-
-
-def _point_segment_distance(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Distances (S,) from points P (S, 3) to segments A–B (S, 3)."""
-    AB = B - A
-    u = np.clip(np.einsum("sk,sk->s", P - A, AB) / np.einsum("sk,sk->s", AB, AB), 0.0, 1.0)
-    return np.linalg.norm(P - (A + AB * u[:, None]), axis=1)
 
 
 #: Margins that keep the audit's limits when they are checked between the samples.
@@ -222,7 +216,7 @@ class ActuatorProblem:
                 xb = self._seed_world(a + 1)
                 for tpar in CLEARANCE_T:
                     P0 = (1 - tpar) * xa + tpar * xb                       # (S, 3) seed positions
-                    d0 = _point_segment_distance(P0[cc], wa[cc], wb[cc])
+                    d0 = segment_point_distance(P0[cc][:, None, :], wa[cc], wb[cc])[0][:, 0]
                     if d0.min() - max(reach[a], reach[a + 1]) > need + 0.005:
                         continue
                     P = (1 - tpar) * X[a][:, cc] + tpar * X[a + 1][:, cc]

@@ -237,9 +237,23 @@ class AuditResult:
         return [c["name"] for c in self.criteria if c["passed"] is False]
 
     def to_dict(self) -> dict:
-        return {"design": self.design, "source": self.source, "passed": self.passed, "failed": self.failed,
-                "summary": self.summary, "criteria": self.criteria, "pams": self.pams, "samples": self.samples,
-                "thresholds": self.thresholds, "seconds": round(self.seconds, 2)}
+        """The result as plain data for strict JSON (``audit.json``): a number that is not finite (an
+        undefined error) becomes ``None``."""
+        return _finite_or_none({"design": self.design, "source": self.source, "passed": self.passed,
+                                "failed": self.failed, "summary": self.summary, "criteria": self.criteria,
+                                "pams": self.pams, "samples": self.samples, "thresholds": self.thresholds,
+                                "seconds": round(self.seconds, 2)})
+
+
+def _finite_or_none(x):
+    """``x`` with every non-finite float (in nested dicts, lists and tuples) replaced by ``None``."""
+    if isinstance(x, dict):
+        return {k: _finite_or_none(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite_or_none(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    return x
 
 
 # ----------------------------------------------------------------------------- geometry helpers
@@ -248,11 +262,19 @@ def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x)))) if x.size else float("nan")
 
 
+def failing_as_worst(values) -> np.ndarray:
+    """``values`` as an array with every undefined (nan) entry replaced by +inf: an error that cannot be
+    computed (no human torque to divide by) fails every limit instead of dropping out of a median."""
+    a = np.asarray(values, float)
+    return np.where(np.isnan(a), np.inf, a)
+
+
 def torque_metrics(th: np.ndarray, tr: np.ndarray, prim: int, coords: list[int], names: list[str]) -> dict:
     """The audit's torque numbers of one PAM: human ``th`` and robot ``tr`` torques (S, n_coordinates) [N·m];
     ``nrmse`` = RMS error about the primary coordinate ``prim`` ÷ the human peak about it, and per
     coordinate of ``coords`` (indices into ``names``) the same ratio (``coordinate_errors``), the worst of them
-    (``worst_coordinate``, ``worst_coordinate_error``) and the peaks."""
+    (``worst_coordinate``, ``worst_coordinate_error``) and the peaks. Where the human has no torque about
+    ``prim`` on these samples the ratios are undefined (nan; the audit's summary counts them as failing)."""
     peak = float(np.max(np.abs(th[:, prim]))) if len(th) else 0.0
     err = {names[c]: _rms(tr[:, c] - th[:, c]) / peak if peak > 0 else float("nan") for c in coords}
     worst = max(err, key=lambda c: (err[c] if np.isfinite(err[c]) else -1)) if err else ""
@@ -454,16 +476,19 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
     def count(pred) -> int:
         return int(sum(1 for r in rows if pred(r)))
 
-    nr = np.array([r["random_nrmse"] for r in rows])
-    we = np.array([r["random_worst_coordinate_error"] for r in rows])
+    # an error that is not defined (no human torque about the PAM's primary coordinate on these poses) counts
+    # as the worst, never as a PAM left out of the median and the maximum
+    nr = failing_as_worst([r["random_nrmse"] for r in rows])
+    we = failing_as_worst([r["random_worst_coordinate_error"] for r in rows])
     summary = {
         "pam_count": int(2 * units.sum()),
-        "random_nrmse_median": float(np.nanmedian(nr)),
+        "random_nrmse_median": float(np.median(nr)),
         "random_nrmse_le_0_15": int(np.sum(nr <= thr["nrmse_good"])),
         "worst_coordinate_error_le_0_25": int(np.sum(we <= thr["worst_coordinate_error_good"])),
-        "worst_coordinate_error_max": float(np.nanmax(we)),
-        "gait_nrmse_median": float(np.nanmedian([r.get("gait_nrmse", np.nan) for r in rows])) if len(q_gait) else None,
-        "sweep_nrmse_median": float(np.nanmedian([r["sweep_nrmse"] for r in rows])),
+        "worst_coordinate_error_max": float(np.max(we)),
+        "gait_nrmse_median": float(np.median(failing_as_worst([r.get("gait_nrmse", np.nan) for r in rows])))
+        if len(q_gait) else None,
+        "sweep_nrmse_median": float(np.median(failing_as_worst([r["sweep_nrmse"] for r in rows]))),
         "dead_zone_pams": count(lambda r: r["random_dead_zone_fraction"] > 0 or r.get("gait_dead_zone_fraction", 0) > 0
                                 or r.get("gait_dead_zone_fraction_left", 0) > 0),
         "dead_zone_pams_gait": count(lambda r: r.get("gait_dead_zone_fraction", 0) > 0

@@ -3,6 +3,7 @@ the CLI contract, and the thesis design against the independent measurement of t
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import warnings
 
@@ -321,6 +322,21 @@ def test_off_axis_torque_of_a_two_point_pam_by_hand(skel):
     expected = np.sqrt(np.mean((F * r) ** 2)) / peak
     assert row["random_coordinate_errors"]["lumbar_extension"] == pytest.approx(expected, rel=1e-6)
     assert row["random_coordinate_errors"]["lumbar_extension"] > 0.1
+
+
+def test_undefined_error_fails_and_is_strict_json():
+    """A PAM whose human muscles have no torque about its primary coordinate (psoas about lumbar extension)
+    has no defined NRMSE: it fails the NRMSE limits (never drops out of the median) and audit.json stays
+    strict JSON (null)."""
+    pam = dataclasses.replace(_two_point_design().pams[0], primary_coordinate="lumbar_extension")
+    res = audit_design(Design("no_human_torque", (pam,), rom="robot_thesis"), options=AuditOptions(**SMALL))
+    row = res.pams[0]
+    assert row["random_human_peak_Nm"] == 0.0 and np.isnan(row["random_nrmse"])
+    assert res.summary["random_nrmse_median"] == np.inf and res.summary["worst_coordinate_error_max"] == np.inf
+    assert res.summary["random_nrmse_le_0_15"] == 0
+    assert {"random_nrmse_median", "random_nrmse_le_0_15", "worst_coordinate_error_max"} <= set(res.failed)
+    d = json.loads(json.dumps(res.to_dict(), allow_nan=False, default=float))
+    assert d["summary"]["random_nrmse_median"] is None and d["pams"][0]["random_nrmse"] is None
 
 
 # ----------------------------------------------------------------------------- limits and CLI

@@ -72,7 +72,7 @@ def cmd_audit(args: argparse.Namespace) -> int:
     if args.out:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
-        atomic_write(out / "audit.json", json.dumps(res.to_dict(), indent=1, default=float))
+        atomic_write(out / "audit.json", json.dumps(res.to_dict(), indent=1, default=float, allow_nan=False))
         atomic_write(out / "scorecard.txt", text)
         written += [out / "audit.json", out / "scorecard.txt", plot_criteria(res, out / "criteria.png"),
                     audit_view(res, out / "view.html", args.geometry)]
@@ -83,7 +83,7 @@ def cmd_audit(args: argparse.Namespace) -> int:
     if args.json:
         d = res.to_dict()
         d["written"] = [str(w) for w in written]
-        print(json.dumps(d, indent=1, default=float))
+        print(json.dumps(d, indent=1, default=float, allow_nan=False))
     else:
         print(text, end="")
         for w in written:

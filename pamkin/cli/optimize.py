@@ -130,8 +130,8 @@ def audit_side_by_side(out: Path, stream) -> str:
         thesis = thesis_quick_audit()
     except PamkinError as e:      # e.g. no bone meshes or walking trial on this machine: the run stands
         return f"\nAudit skipped ({e}); run pamkin audit {out} with --geometry/--ik where that data is.\n"
-    atomic_write(out / "audit.json", json.dumps(res.to_dict(), indent=1, default=float))
-    atomic_write(out / "audit_thesis.json", json.dumps(thesis.to_dict(), indent=1, default=float))
+    atomic_write(out / "audit.json", json.dumps(res.to_dict(), indent=1, default=float, allow_nan=False))
+    atomic_write(out / "audit_thesis.json", json.dumps(thesis.to_dict(), indent=1, default=float, allow_nan=False))
     atomic_write(out / "scorecard.txt", scorecard_text(res))
     lim = res.summary.get("gait_limiting_coordinates") or {}
     gait_line = ("Gait frames limited by (fraction within the tolerance, this run): "
