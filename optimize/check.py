@@ -109,7 +109,8 @@ def summarize(seed: Design, new: Design, results, cfg, progress=None) -> dict:
         "grids": {"nrmse_before/after": f"1-D primary, {DENSE_1D} samples, other coordinates 0",
                   "nrmse_2d_after": f"primary x first secondary, {DENSE_2D}x{DENSE_2D}",
                   "dead_zone_fraction": f"full grid over primary + secondaries, <= {DENSE_CONSTRAINT} per axis",
-                  "min_bone_clearance_m": "same grid; segment interiors t in [0.15, 0.85]"},
+                  "min_bone_clearance_m": "same grid; segment interiors t in [0.15, 0.85]; to the bone-shaft "
+                                          "capsules less both radii"},
         "median_nrmse_before": float(np.median(e_b)), "median_nrmse_after": float(np.median(e_a)),
         "n_within_0.20_after": int(np.sum(e_a <= 0.20)),
         "n_halved": int(np.sum(e_a <= 0.5 * e_b)),

@@ -1136,6 +1136,8 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         summary["bone_mesh_not_clear"] = [f"{r.id} {r.name}: {bone_line(r.bone)}" for r in results
                                           if r.bone and not r.bone["clear"]]
         summary["all_clear_bone"] = not summary["bone_mesh_not_clear"]    # the meshes replace the capsules
+        summary["grids"]["min_bone_clearance_m"] += (" (the first phase's bone model; with the bone meshes the "
+                                                     "actuators' bone_mesh entries give the clearance)")
         summary["bone_mesh_fit_cost"] = costly
     if any(r.mount for r in results):
         summary["one_segment"] = {str(r.id): r.mount for r in results if r.mount}
