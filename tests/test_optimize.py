@@ -1130,3 +1130,24 @@ def test_default_run_keeps_the_mass_budget(tmp_path):
     assert re.search(r"mass budget 22 kg: 22\.[0-9]{2} kg; the 2:1 block of actuator 25 Adductor group comes off again",
                      stream.getvalue())
     assert "comes off again" in (tmp_path / "run" / "log.txt").read_text()
+
+
+def _task_result(task):
+    """A stand-in for a worker's result (what ``_map``'s progress line reads): the task in its id."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(id=task, name=f"task {task}", success=True, seconds=0.0, nrmse_samples={"x": 0.1})
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_map_hands_out_the_longest_tasks_first(workers):
+    """``_map`` with a cost estimate starts the tasks longest first (ties in the given order) and returns every
+    result once, whatever order they finish in."""
+    tasks = [10, 11, 12, 13, 14]
+    cost = [1.0, 5.0, 3.0, 5.0, 0.5]
+    out = run_mod._map(_task_result, tasks, RunConfig(workers=workers), io.StringIO(), cost=cost)
+    assert sorted(r.id for r in out) == tasks
+    if workers == 1:                                   # in-process: the order they were handed out
+        assert [r.id for r in out] == [11, 13, 12, 10, 14]
+    plain = run_mod._map(_task_result, tasks, RunConfig(workers=1), io.StringIO())
+    assert [r.id for r in plain] == tasks
