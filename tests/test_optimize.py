@@ -7,6 +7,7 @@ import dataclasses
 import hashlib
 import io
 import json
+import os
 import re
 from pathlib import Path
 
@@ -1151,3 +1152,32 @@ def test_map_hands_out_the_longest_tasks_first(workers):
         assert [r.id for r in out] == [11, 13, 12, 10, 14]
     plain = run_mod._map(_task_result, tasks, RunConfig(workers=1), io.StringIO())
     assert [r.id for r in plain] == tasks
+
+
+def _blas_threads(task):
+    """A stand-in for a worker's result carrying the BLAS threads where it ran: numpy's (threadpoolctl)
+    and the ``OPENBLAS_NUM_THREADS`` the OpenBLAS CasADi loads with IPOPT reads."""
+    from types import SimpleNamespace
+
+    from threadpoolctl import threadpool_info
+
+    return SimpleNamespace(id=task, name=f"task {task}", success=True, seconds=0.0, nrmse_samples={"x": 0.1},
+                           threads=[i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"],
+                           env=os.environ.get("OPENBLAS_NUM_THREADS"), pid=os.getpid())
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_solves_run_on_one_blas_thread(workers, monkeypatch):
+    """Every task of ``_map`` (in the workers, or in the run's process) runs with one BLAS thread — numpy's
+    and the one CasADi's IPOPT loads — so the design does not depend on the core count and the workers do not
+    oversubscribe the cores; the run's process gets its own settings back afterwards."""
+    from threadpoolctl import threadpool_info
+
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "7")
+    before = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+    out = run_mod._map(_blas_threads, [1, 2, 3, 4], RunConfig(workers=workers), io.StringIO())
+    assert len(out) == 4 and all(r.threads and set(r.threads) == {1} for r in out)
+    assert {r.env for r in out} == {"1"}
+    assert ({r.pid for r in out} == {os.getpid()}) == (workers == 1)
+    assert os.environ["OPENBLAS_NUM_THREADS"] == "7"
+    assert [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"] == before
