@@ -60,6 +60,7 @@ class ActuatorResult:
     skipped: list[str] = field(default_factory=list)     # diameter / count tries left out as dominated
     objective: float | None = None                       # the saved solution's fit objective (NRMSE²-like)
     direct: "ActuatorResult | None" = field(default=None, repr=False)   # before the one-segment stage's block
+    warm: bool = False                                   # the first phase kept the warm start (its size stays)
 
 
 # worker state (fork): set before the pool starts
@@ -215,9 +216,10 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
         out = _result(pam, data, best_problem[0], best, attempts, t0, {})
         out.candidates = candidates
         out.skipped = skipped
+        out.warm = warm_ok
         return out
     best, bone, cuts = _bone_rounds(best_problem[0], best, pam, cfg)
-    best, prob, mount, direct = _mount(best_problem[0], best, pam, cfg, cuts)
+    best, prob, mount, direct = _mount(best_problem[0], best, pam, cfg, cuts, blocks=not warm_ok)
     return _mounted_result(pam, data, prob, best, mount, direct, attempts, t0, bone, skipped)
 
 
@@ -380,7 +382,7 @@ def _finish_choice(task: tuple) -> ActuatorResult:
         if not sol.success:
             return _result(pam, data, prob, sol, first.attempts, t0 - first.seconds, {})
     best, bone, cuts = _bone_rounds(prob, sol, pam, cfg)
-    best, prob, mount, direct = _mount(prob, best, pam, cfg, cuts)
+    best, prob, mount, direct = _mount(prob, best, pam, cfg, cuts, blocks=not first.warm)
     attempts = first.attempts + [_attempt(key, start, sol, relax, t)]
     return _mounted_result(pam, data, prob, best, mount, direct, attempts, t0 - first.seconds, bone, first.skipped)
 
@@ -405,21 +407,27 @@ def block_start(prob, z: np.ndarray, k0: int, k: int, fitting_length: float) -> 
     return np.clip(z, prob.lbx, prob.ubx)
 
 
-def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None):
+def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None, blocks: bool = True):
     """The one-segment stage of a solved actuator (when ``cfg.mount``; :mod:`optimize.mount`): on its fixed
     route, and where that fails narrowly, with the bone rounds (``cuts``) and the PAM on the segment
-    (:func:`optimize.mount.mount_rounds`). Returns (solution, its problem, mount info, direct), ``direct``
+    (:func:`optimize.mount.mount_rounds`), then on a pulley block (:func:`optimize.mount.mount_block`) unless
+    ``blocks`` is False: an actuator whose warm start was kept keeps its warm size, transmission included
+    (its run tried the blocks; the mass budget may have taken one off again, and a warm run would put it on
+    again only to take it off). Returns (solution, its problem, mount info, direct), ``direct``
     the (solution, problem, mount info) before a pulley block where the stage put the PAM on one (else None)."""
     if not (cfg.mount and best.success):
         return best, prob, {}, None
-    from .mount import mount_block, mount_rounds, mount_stage  # noqa: PLC0415
+    from .mount import BLOCK_REASONS, mount_block, mount_rounds, mount_stage  # noqa: PLC0415
 
     best, info = mount_stage(prob, best, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam)
     if not info.get("mounted") and cuts is not None:
         best, prob, info = mount_rounds(prob, best, info, pam, cfg, cuts, _STATE["human"], _STATE["rom"],
                                         solution_pam)
     direct = None
-    if not info.get("mounted"):
+    if not info.get("mounted") and not blocks:
+        if cfg.mount_blocks and info.get("reason") in BLOCK_REASONS and prob.k == 1:
+            info = dict(info, line=info["line"] + "; no pulley block tried (warm start: its transmission kept)")
+    elif not info.get("mounted"):
         before = (best, prob, info)
         best, prob, info = mount_block(prob, best, info, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam)
         if info.get("transmission", 1) > 1:

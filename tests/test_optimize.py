@@ -1181,3 +1181,32 @@ def test_solves_run_on_one_blas_thread(workers, monkeypatch):
     assert ({r.pid for r in out} == {os.getpid()}) == (workers == 1)
     assert os.environ["OPENBLAS_NUM_THREADS"] == "7"
     assert [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"] == before
+
+
+@pytest.mark.parametrize("blocks", [True, False])
+def test_warm_start_keeps_its_transmission(blocks, monkeypatch):
+    """``_mount`` puts a PAM out of reach of one segment on a pulley block, except for an actuator whose warm
+    start was kept (``blocks=False``): it keeps its warm transmission and its mount line says so."""
+    from types import SimpleNamespace
+
+    import pamkin.optimize.mount as mount_mod
+
+    calls = []
+    info0 = {"mounted": False, "reason": "out of reach", "line": "cannot sit on one straight segment"}
+    monkeypatch.setattr(mount_mod, "mount_stage", lambda prob, best, *a: (best, dict(info0)))
+    monkeypatch.setattr(mount_mod, "mount_rounds", lambda prob, best, info, *a: (best, prob, info))
+
+    def block(prob, best, info, *a):
+        calls.append(best)
+        return "on a block", prob, dict(info, mounted=True, transmission=2)
+
+    monkeypatch.setattr(mount_mod, "mount_block", block)
+    monkeypatch.setitem(run_mod._STATE, "human", None)
+    monkeypatch.setitem(run_mod._STATE, "rom", None)
+    prob, best = SimpleNamespace(k=1), SimpleNamespace(success=True)
+    sol, _, info, direct = run_mod._mount(prob, best, None, RunConfig(), cuts=object(), blocks=blocks)
+    if blocks:
+        assert calls == [best] and sol == "on a block" and info["transmission"] == 2 and direct[0] is best
+    else:
+        assert calls == [] and sol is best and direct is None and not info["mounted"]
+        assert info["line"].endswith("no pulley block tried (warm start: its transmission kept)")
