@@ -46,7 +46,7 @@ import yaml
 
 from . import festo
 from ._resources import SHARED_DIR, data_file
-from .compare import compare_pam
+from .compare import compare_pam, failing_as_worst, finite_or_none  # noqa: F401  (failing_as_worst: public here too)
 from .design import Design, load_design, pam_length, pam_unit_mass, pams_mass
 from .errors import ConfigurationError, DataFileError, RangeWarning
 from .model import Model
@@ -239,34 +239,16 @@ class AuditResult:
     def to_dict(self) -> dict:
         """The result as plain data for strict JSON (``audit.json``): a number that is not finite (an
         undefined error) becomes ``None``."""
-        return _finite_or_none({"design": self.design, "source": self.source, "passed": self.passed,
+        return finite_or_none({"design": self.design, "source": self.source, "passed": self.passed,
                                 "failed": self.failed, "summary": self.summary, "criteria": self.criteria,
                                 "pams": self.pams, "samples": self.samples, "thresholds": self.thresholds,
                                 "seconds": round(self.seconds, 2)})
-
-
-def _finite_or_none(x):
-    """``x`` with every non-finite float (in nested dicts, lists and tuples) replaced by ``None``."""
-    if isinstance(x, dict):
-        return {k: _finite_or_none(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite_or_none(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    return x
 
 
 # ----------------------------------------------------------------------------- geometry helpers
 # ----------------------------------------------------------------------------- the audit
 def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x)))) if x.size else float("nan")
-
-
-def failing_as_worst(values) -> np.ndarray:
-    """``values`` as an array with every undefined (nan) entry replaced by +inf: an error that cannot be
-    computed (no human torque to divide by) fails every limit instead of dropping out of a median."""
-    a = np.asarray(values, float)
-    return np.where(np.isnan(a), np.inf, a)
 
 
 def torque_metrics(th: np.ndarray, tr: np.ndarray, prim: int, coords: list[int], names: list[str]) -> dict:

@@ -172,10 +172,33 @@ def compare_joints(robot: PamRobot, human: Model, side: str = "r", n: int = 41) 
     return out
 
 
+def failing_as_worst(values) -> np.ndarray:
+    """``values`` as an array with every undefined (nan) entry replaced by +inf: an error that cannot be
+    computed (no human torque to divide by) fails every limit instead of dropping out of a median."""
+    a = np.asarray(values, float)
+    return np.where(np.isnan(a), np.inf, a)
+
+
+def finite_or_none(x):
+    """``x`` with every non-finite float (in nested dicts, lists and tuples) replaced by ``None``: strict
+    JSON (``json.dumps(..., allow_nan=False)``) for results with undefined or failing-as-infinite values."""
+    if isinstance(x, dict):
+        return {k: finite_or_none(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [finite_or_none(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if np.isfinite(x) else None
+    return x
+
+
 def summary_line(rows: list[PamComparison], threshold: float = 0.25) -> dict:
-    """Median primary NRMSE, count within ``threshold``, wrong-signed and unbuildable PAMs."""
-    e = np.array([r.primary.nrmse for r in rows])
-    return {"n": len(rows), "median_nrmse": float(np.nanmedian(e)), f"within_{threshold}": int(np.sum(e <= threshold)),
+    """Median primary NRMSE, count within ``threshold``, wrong-signed and unbuildable PAMs. A PAM whose
+    human muscles give no torque about its primary coordinate has an undefined NRMSE: it counts as
+    infinite in the median (as in :mod:`pamkin.audit`) and is named in ``undefined_nrmse``."""
+    e = failing_as_worst([r.primary.nrmse for r in rows])
+    return {"n": len(rows), "median_nrmse": float(np.median(e)) if len(e) else float("nan"),
+            f"within_{threshold}": int(np.sum(e <= threshold)),
+            "undefined_nrmse": [r.id for r in rows if np.isnan(r.primary.nrmse)],
             "sign_agreement_below_half": [r.id for r in rows if r.primary.sign_agreement < 0.5],
             "not_buildable": [r.id for r in rows if not r.buildable],
             "with_dead_zones": [r.id for r in rows if r.primary.dead_zone_fraction > 0]}

@@ -168,8 +168,30 @@ def test_size_and_compare_cli_json(capsys):
         if r["feasible"]:
             assert r["tendon_length_m"] >= 0
     assert main(["compare", "--json", "-n", "11"]) == 0
-    out = json.loads(capsys.readouterr().out)
+
+    def not_strict(name):
+        raise AssertionError(f"{name} in the JSON output")
+
+    out = json.loads(capsys.readouterr().out, parse_constant=not_strict)     # strict JSON: no NaN / Infinity
     assert out["summary"]["n"] == 27 and "uni_hip_r" in out["groups"] and "knee_angle_r" in out["joints"]
+
+
+def test_compare_summary_counts_an_undefined_error_as_failing():
+    """A PAM whose human muscles give no torque about its primary coordinate (NRMSE nan) counts as infinite in
+    the median — as in the audit — instead of dropping out of it, and is named; strict JSON keeps it as null."""
+    from types import SimpleNamespace
+
+    from pamkin.compare import finite_or_none, summary_line
+
+    rows = [SimpleNamespace(id=i, buildable=True,
+                            primary=SimpleNamespace(nrmse=e, sign_agreement=1.0, dead_zone_fraction=0.0))
+            for i, e in ((1, 0.1), (2, 0.3), (3, float("nan")))]
+    s = summary_line(rows)
+    assert s["median_nrmse"] == 0.3          # of [0.1, 0.3, inf]; dropping the nan gave 0.2
+    assert s["within_0.25"] == 1 and s["undefined_nrmse"] == [3]
+    assert summary_line(rows[:2])["median_nrmse"] == pytest.approx(0.2) and summary_line(rows[:2])["undefined_nrmse"] == []
+    assert json.loads(json.dumps(finite_or_none({"a": np.inf, "b": [np.nan, 1.0], "c": (2,)}), allow_nan=False)) == \
+        {"a": None, "b": [None, 1.0], "c": [2]}
 
 
 def test_cli_bad_design_file(tmp_path, capsys):

@@ -121,7 +121,7 @@ def cmd_size(args: argparse.Namespace) -> int:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     import pamkin  # noqa: PLC0415
-    from ..compare import compare_design, compare_groups, compare_joints, summary_line  # noqa: PLC0415
+    from ..compare import compare_design, compare_groups, compare_joints, finite_or_none, summary_line  # noqa: PLC0415
 
     robot = _robot(args.design)
     human = pamkin.gait2392()
@@ -130,9 +130,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
     joints = compare_joints(robot, human, args.side)
     summary = summary_line(rows)
     if args.json:
-        print(json.dumps({"design": robot.design.name, "rom": robot.design.rom, "side": args.side,
-                          "summary": summary, "pams": [r.to_dict() for r in rows], "groups": groups,
-                          "joints": joints}, indent=2))
+        print(json.dumps(finite_or_none({"design": robot.design.name, "rom": robot.design.rom, "side": args.side,
+                                         "summary": summary, "pams": [r.to_dict() for r in rows], "groups": groups,
+                                         "joints": joints}), indent=2, allow_nan=False))
         return 0
     print(f"Design {robot.design.name!r} vs Gait2392 (activation 1), {robot.design.rom} range of motion, "
           f"side {args.side}. NRMSE = RMS(robot - human) / human peak.")
@@ -146,7 +146,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
               f"{p.dead_zone_fraction:5.2f} | {sec}")
     print(f"\nMedian primary NRMSE {summary['median_nrmse']:.3f}; {summary['within_0.25']} of {summary['n']} PAMs "
           f"within 0.25; sign agreement < 0.5: {summary['sign_agreement_below_half']}; not buildable: "
-          f"{summary['not_buildable']}; with dead zones: {summary['with_dead_zones']}")
+          f"{summary['not_buildable']}; with dead zones: {summary['with_dead_zones']}"
+          + (f"; undefined NRMSE (no human torque about the primary coordinate; counted as infinite): "
+             f"{summary['undefined_nrmse']}" if summary["undefined_nrmse"] else ""))
     print("\nThesis groups (robot sum vs human group), NRMSE per coordinate:")
     for key, g in groups.items():
         print(f"  {key:16s} PAMs {g['pams']}: " + "; ".join(
