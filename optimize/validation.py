@@ -35,7 +35,9 @@ def validation_error(pam: Pam, model, q: np.ndarray, human_torques: np.ndarray, 
     """(primary NRMSE, worst error about any of ``coords``) of ``pam`` at poses ``q``: RMS(robot − human
     torque) ÷ the human peak about the primary coordinate; ``human_torques`` (S, n_muscles, n_coordinates)
     from ``model.torques(q)``. The PAM's force uses ``design``'s pressure, force model and fitting length
-    (default: a design's defaults, 620 kPa and v3)."""
+    (default: a design's defaults, 620 kPa and v3). Where the human muscles give no torque about the primary
+    coordinate at these poses both errors are undefined: they count as infinite (the worst, as in the audit),
+    so such a result never wins a comparison."""
     from pamkin.robot import PamRobot
 
     base = design or Design("validation", ())
@@ -43,11 +45,12 @@ def validation_error(pam: Pam, model, q: np.ndarray, human_torques: np.ndarray, 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RangeWarning)
         tr = PamRobot(des, model, sides=("r",)).evaluate(q).torques[:, 0, :]
-    from pamkin.audit import torque_metrics
+    from pamkin.audit import failing_as_worst, torque_metrics
 
     idx = [model.muscles.index(m) for m in pam.human_muscles]
     th = human_torques[:, idx].sum(axis=1)
     names = model.coordinates
     prim = names.index(pam.primary_coordinate)
     m = torque_metrics(th, tr, prim, sorted({*(names.index(c) for c in coords), prim}), names)
-    return m["nrmse"], m["worst_coordinate_error"]
+    nrmse, worst = failing_as_worst([m["nrmse"], m["worst_coordinate_error"]])
+    return float(nrmse), float(worst)

@@ -56,3 +56,19 @@ def test_validation_error_uses_the_designs_pressure():
     got = validation_error(des.pams[11], human, q, T, row["coordinates_crossed"], des)
     assert got[0] == pytest.approx(row["random_nrmse"], rel=1e-9)
     assert got[0] != pytest.approx(validation_error(des.pams[11], human, q, T, row["coordinates_crossed"])[0], rel=1e-3)
+
+
+def test_an_undefined_validation_error_is_the_worst():
+    """No human torque about the primary coordinate (psoas about lumbar extension: Gait2392's psoas_r starts
+    on the pelvis): both errors count as infinite, as in the audit, instead of nan (which no comparison
+    would ever rank)."""
+    import dataclasses
+
+    human = pamkin.gait2392()
+    des = load_design("v2_seed")
+    pam = dataclasses.replace(des.pam(27), primary_coordinate="lumbar_extension")
+    q = validation_poses(human, load_rom(des.rom, "r"), n=20)
+    got = validation_error(pam, human, q, human.torques(q), ["hip_flexion_r", "lumbar_extension"], des)
+    assert got == (np.inf, np.inf)
+    ok = validation_error(des.pam(27), human, q, human.torques(q), ["hip_flexion_r"], des)
+    assert all(np.isfinite(ok))
