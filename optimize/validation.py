@@ -45,7 +45,8 @@ def validation_error(pam: Pam, model, q: np.ndarray, human_torques: np.ndarray, 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RangeWarning)
         tr = PamRobot(des, model, sides=("r",)).evaluate(q).torques[:, 0, :]
-    from pamkin.audit import failing_as_worst, torque_metrics
+    from pamkin.audit import torque_metrics
+    from pamkin.compare import failing_as_worst
 
     idx = [model.muscles.index(m) for m in pam.human_muscles]
     th = human_torques[:, idx].sum(axis=1)

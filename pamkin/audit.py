@@ -46,7 +46,7 @@ import yaml
 
 from . import festo
 from ._resources import SHARED_DIR, data_file
-from .compare import compare_pam, failing_as_worst, finite_or_none  # noqa: F401  (failing_as_worst: public here too)
+from .compare import compare_pam, failing_as_worst, finite_or_none
 from .design import Design, load_design, pam_length, pam_unit_mass, pams_mass
 from .errors import ConfigurationError, DataFileError, RangeWarning
 from .model import Model
@@ -240,9 +240,9 @@ class AuditResult:
         """The result as plain data for strict JSON (``audit.json``): a number that is not finite (an
         undefined error) becomes ``None``."""
         return finite_or_none({"design": self.design, "source": self.source, "passed": self.passed,
-                                "failed": self.failed, "summary": self.summary, "criteria": self.criteria,
-                                "pams": self.pams, "samples": self.samples, "thresholds": self.thresholds,
-                                "seconds": round(self.seconds, 2)})
+                               "failed": self.failed, "summary": self.summary, "criteria": self.criteria,
+                               "pams": self.pams, "samples": self.samples, "thresholds": self.thresholds,
+                               "seconds": round(self.seconds, 2)})
 
 
 # ----------------------------------------------------------------------------- geometry helpers
