@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from pamkin import festo
-from pamkin.compare import compare_pam
+from pamkin.compare import compare_pam, failing_as_worst
 from pamkin.design import Design
 from pamkin.robot import PamRobot, robot_skeleton
 from pamkin.rom import load_rom
@@ -102,8 +102,10 @@ def summarize(seed: Design, new: Design, results, cfg, progress=None) -> dict:
         })
         if progress is not None:
             progress(len(rows), len(results), r.id, r.name)
-    e_b = np.array([x["nrmse_before"] for x in rows])
-    e_a = np.array([x["nrmse_after"] for x in rows])
+    # an undefined NRMSE (no human torque about the primary coordinate) is the worst, as in the audit and
+    # pamkin compare: it counts as infinite in the medians and is named, instead of poisoning them with nan
+    e_b = failing_as_worst([x["nrmse_before"] for x in rows])
+    e_a = failing_as_worst([x["nrmse_after"] for x in rows])
     return {
         "seed_design": seed.name, "rom": new.rom, "force_model": new.force_model, "pressure_Pa": new.pressure_Pa,
         "grids": {"nrmse_before/after": f"1-D primary, {DENSE_1D} samples, other coordinates 0",
@@ -112,6 +114,7 @@ def summarize(seed: Design, new: Design, results, cfg, progress=None) -> dict:
                   "min_bone_clearance_m": "same grid; segment interiors t in [0.15, 0.85]; to the bone-shaft "
                                           "capsules less both radii"},
         "median_nrmse_before": float(np.median(e_b)), "median_nrmse_after": float(np.median(e_a)),
+        "undefined_nrmse": [x["id"] for x in rows if np.isnan(x["nrmse_after"])],
         "n_within_0.20_after": int(np.sum(e_a <= 0.20)),
         "n_halved": int(np.sum(e_a <= 0.5 * e_b)),
         "all_buildable": bool(all(x["buildable"] for x in rows)),

@@ -1099,6 +1099,14 @@ def _run_header(out_dir: Path, cfg: RunConfig) -> str:
             "# --design or --warm-start and this folder.\n")
 
 
+def _write_summary(out_dir: Path, summary: dict) -> None:
+    """``summary.json`` as strict JSON (atomically): a non-finite number (an undefined or failing-as-infinite
+    error, a failed solve's objective) is written as ``null``, which every JSON reader accepts."""
+    from pamkin.compare import finite_or_none  # noqa: PLC0415
+
+    atomic_write(out_dir / "summary.json", json.dumps(finite_or_none(summary), indent=2, allow_nan=False))
+
+
 def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -> dict:
     """Run an optimisation into ``out_dir`` (created); optionally apply the result.
 
@@ -1192,7 +1200,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
     summary["solve_seconds"] = round(solve_seconds, 1)
     summary["total_seconds"] = round(time.perf_counter() - t0, 1)
     save_design(new, out_dir / "design.yaml", _run_header(out_dir, cfg))
-    atomic_write(out_dir / "summary.json", json.dumps(summary, indent=2))
+    _write_summary(out_dir, summary)
     before_after_plot(seed, new, out_dir / "before_after.png")
     log.extend(ends)
     log.append(f"total {summary['total_seconds']} s (solves {solve_seconds:.1f} s)")
@@ -1201,12 +1209,12 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         check_results(results)
     except InfeasibleError:
         summary["applied"] = False
-        atomic_write(out_dir / "summary.json", json.dumps(summary, indent=2))
+        _write_summary(out_dir, summary)
         raise
     if apply:
         apply_design(new, run_folder=out_dir)
         summary["applied"] = True
-        atomic_write(out_dir / "summary.json", json.dumps(summary, indent=2))
+        _write_summary(out_dir, summary)
     return summary
 
 

@@ -72,3 +72,34 @@ def test_an_undefined_validation_error_is_the_worst():
     assert got == (np.inf, np.inf)
     ok = validation_error(des.pam(27), human, q, human.torques(q), ["hip_flexion_r"], des)
     assert all(np.isfinite(ok))
+
+
+def test_the_runs_check_counts_an_undefined_nrmse_as_the_worst(tmp_path):
+    """optimize.check.summarize (the run's independent numpy check, summary.json's "check"): a PAM whose human
+    muscles have no torque about its primary coordinate (psoas about lumbar extension) has an undefined 1-D
+    NRMSE; it is named, counts as infinite in the median (not nan, not dropped), and summary.json stays strict
+    JSON (``null``)."""
+    import dataclasses
+    import json
+    from types import SimpleNamespace
+
+    from pamkin.compare import finite_or_none
+    from pamkin.optimize.check import summarize
+    from pamkin.optimize.config import load_config
+    from pamkin.optimize.run import _write_summary
+
+    des = load_design("v2_seed")
+    odd = dataclasses.replace(des.pam(27), primary_coordinate="lumbar_extension", secondary_coordinates=())
+    new = dataclasses.replace(des, pams=(des.pam(26), odd, des.pam(10)))
+    results = [SimpleNamespace(id=p.id, name=p.name, sample_q={}, torque_samples={}, nrmse_samples={},
+                               status="Solve_Succeeded", success=True, seconds=0.0) for p in new.pams]
+    s = summarize(new, new, results, load_config(None))
+    rows = {r["id"]: r for r in s["actuators"]}
+    assert np.isnan(rows[27]["nrmse_after"]) and s["undefined_nrmse"] == [27]
+    finite = sorted(rows[i]["nrmse_after"] for i in (26, 10))
+    assert all(np.isfinite(finite))
+    assert s["median_nrmse_after"] == pytest.approx(finite[1])          # the middle of (a, b, inf)
+    _write_summary(tmp_path, {"check": s})
+    back = json.loads((tmp_path / "summary.json").read_text(),
+                      parse_constant=lambda c: pytest.fail(f"non-standard JSON constant {c}"))
+    assert back["check"]["actuators"][1]["nrmse_after"] is None and back == finite_or_none({"check": s})

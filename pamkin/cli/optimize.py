@@ -233,6 +233,8 @@ def print_summary(summary: dict, out: Path, audit_text: str | None = None) -> No
           f"{summary['n_within_0.20_after']} of {len(rows)} within 0.20; "
           f"{summary['n_halved']} halved; all buildable: {summary['all_buildable']}; "
           f"all clear of bone: {summary['all_clear_bone']}"
+          + (f"; undefined NRMSE (no human torque about the primary coordinate, counted as infinite): "
+             f"{', '.join(map(str, summary['undefined_nrmse']))}" if summary.get("undefined_nrmse") else "")
           + ("; applied to robot/data/pam_biped.yaml" if summary.get("applied") else ""))
     if audit_text:
         print(audit_text, end="")
