@@ -234,7 +234,8 @@ LIMIT_CHECK_ROUNDS = 2
 def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
     """The bone-mesh stage of a solved actuator (when ``cfg.bone_mesh``): (solution, bone info, its
     :class:`~optimize.bone_cuts.BoneCuts` or None). A warm start taken as given (already through these rounds
-    in its run) stays unless a round beats it."""
+    in its run) stays unless a round beats it, and where it keeps every strain and force limit at the held-out
+    limit-check poses, also when the rounds' result ends over one of them (no deeper into bone)."""
     if not (cfg.bone_mesh and best.success):
         return best, {}, None
     from .bone_cuts import (N_POINT_CHECK, BoneCuts, bone_check_poses, bone_stage,  # noqa: PLC0415
@@ -263,6 +264,7 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
             f"{k} exceeded by {v:.4g}" for k, v in excess.items()) + f"; {what}")
 
     excess = excess_of(best)
+    warm_ok = best.status == "given" and not excess      # a warm start within every limit at the check poses
     if excess:
         note(excess, "limits tightened before the bone rounds")
         tighten(prob, excess)
@@ -297,6 +299,15 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
     excess = excess_of(best)
     if excess:
         lines.append("  limit check: still exceeded: " + "; ".join(f"{k} by {v:.4g}" for k, v in excess.items()))
+        if warm_ok and best is not before:
+            # a warm start taken as given went through these rounds in its own run and kept every limit here:
+            # a continuation that exceeds one is not kept (a warm re-run never makes a route worse in that)
+            m0 = cuts.measure(np.array(before.points))
+            if m0.violation() <= measure.violation() + 1e-9 and not np.nanmin(m0.point_distance, initial=np.inf) < 0:
+                lines.append("  kept the warm start as given: it keeps every limit at the check poses and is no "
+                             f"deeper into bone ({1e3 * m0.violation():.2f} mm; the rounds' result "
+                             f"{1e3 * measure.violation():.2f} mm)")
+                best, measure = before, m0
     bone = _bone_info(cuts, before, measure, info, lines, [p.name for p in pam.points])
     bone.update(objective_before=float(before.objective), objective_after=float(best.objective))
     return best, bone, cuts

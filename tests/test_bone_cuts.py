@@ -418,3 +418,44 @@ def test_mount_rounds_put_a_pam_on_its_segment_with_the_points_free():
     _, info_y = mount_stage(prob, best, seed, cfg_y, model, rom, solution_pam)
     same, p_y, out_y = mount_rounds(prob, best, info_y, seed, cfg_y, cuts, model, rom, solution_pam)
     assert same is best and p_y is prob and "rounds" not in out_y
+
+
+@pytest.mark.parametrize("case", ["warm", "warm over a limit", "not warm"])
+def test_a_warm_start_is_not_traded_for_a_route_over_a_limit(case, monkeypatch):
+    """optimize.run._bone_rounds: a warm start taken as given (status "given") that keeps every strain and force
+    limit at the held-out limit-check poses stays when the rounds' continuation ends over a limit there (and is
+    no deeper in bone); a warm start itself over a limit there (check poses beyond its training range), or a
+    start that is not a warm one, gives way to the rounds' result as before. The limit check is the real one
+    (pamkin.robot at the check poses); the rounds are stubbed to return the route with a PAM stretched past
+    Festo's limit."""
+    import dataclasses
+
+    import pamkin.optimize.bone_cuts as bc
+    import pamkin.optimize.limit_check as lc
+    from pamkin.optimize import run as run_mod
+    from pamkin.optimize.limit_check import limit_excess
+    from pamkin.optimize.run import solution_pam
+
+    model, rom, seed, cfg, prob, best, cuts, bones = _mount_toy(10.0)
+    q, _ = model.grid(["angle"], 41, rom=rom)
+    if case == "warm over a limit":       # check poses far beyond the range it was fitted on
+        q, _ = model.grid(["angle"], 41, rom=RangeOfMotion({"angle": (-1.5, 1.5)}))
+    start = dataclasses.replace(best, status="given" if case.startswith("warm") else best.status)
+    over = best.z.copy()
+    over[-2] *= 1.25                      # a longer PAM on the same route: stretched past Festo's pretension
+    bad = prob.evaluate(over, best.n_parallel)
+    assert limit_excess(solution_pam(seed, prob.finalize(bad)), model, q, cfg, 0.0125)
+    assert bool(limit_excess(solution_pam(seed, prob.finalize(start)), model, q, cfg, 0.0125)) == (case == "warm over a limit")
+
+    monkeypatch.setattr(bc, "bone_check_poses", lambda *a, **k: (q[::4], len(q[::4])))
+    monkeypatch.setattr(bc, "point_contact_poses", lambda *a, **k: np.zeros((0, q.shape[1])))
+    monkeypatch.setattr(bc, "bone_stage", lambda p, s, c, *a, **k: (bad, c.measure(np.array(bad.points)), []))
+    monkeypatch.setattr(lc, "check_poses", lambda *a, **k: q)
+    monkeypatch.setattr(run_mod, "_STATE", {"human": model, "rom": rom, "bones": bones})
+    out, bone, _ = run_mod._bone_rounds(prob, start, seed, dataclasses.replace(cfg, bone_seed_start=False))
+    log = "\n".join(bone["log"])
+    assert "still exceeded" in log
+    if case == "warm":
+        assert out is start and "kept the warm start as given" in log
+    else:
+        assert out is bad and "kept the warm start" not in log
