@@ -105,6 +105,10 @@ class Measure:
         d = self.point_distance[np.isfinite(self.point_distance)]
         return float(seg + np.maximum(-d, 0).sum() + np.maximum(d - 0.020, 0).sum() + pam_weight * self.pam_overlap())
 
+    def point_inside_bone(self) -> bool:
+        """Whether a fixed attachment point lies inside its own bone."""
+        return bool(np.nanmin(self.point_distance, initial=np.inf) < 0)
+
     def pam_overlap(self) -> float:
         """Σ over the other PAM bodies of the deepest overlap [m]."""
         return float(sum(max(-c, 0.0) for c in (self.pam_clearance or {}).values()))

@@ -12,7 +12,8 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
     actuators = []               # actuator ids; [] = all
     warm_start = ""              # run folder whose design.yaml seeds the routes and sizes (its diameter and
                                  # parallel count are tried first; the full loop only where they fail; a PAM
-                                 # whose warm start holds keeps its pulley-block ratio)
+                                 # whose warm start holds keeps its pulley-block ratio, and its route where
+                                 # the continued bone rounds would end over a strain or force limit it keeps)
     pressure_Pa = 620000.0
     force_model = "v3"
     diameters_mm = [10, 20, 40]  # outer loop

@@ -389,7 +389,7 @@ def mount_rounds(prob, best, info: dict, pam: Pam, cfg, cuts, model, rom, soluti
             if not sol.success or sol is start:
                 why = "no feasible round"
                 break
-            if m.violation() > m0.violation() + 1e-9 or np.nanmin(m.point_distance, initial=np.inf) < 0:
+            if m.violation() > m0.violation() + 1e-9 or m.point_inside_bone():
                 why = f"deeper into bone ({1e3 * m.violation():.2f} mm, before {1e3 * m0.violation():.2f} mm)"
                 break
             cost = float(np.sqrt(max(sol.objective, 0.0)) - np.sqrt(max(best.objective, 0.0)))

@@ -303,7 +303,7 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
             # a warm start taken as given went through these rounds in its own run and kept every limit here:
             # a continuation that exceeds one is not kept (a warm re-run never makes a route worse in that)
             m0 = cuts.measure(np.array(before.points))
-            if m0.violation() <= measure.violation() + 1e-9 and not np.nanmin(m0.point_distance, initial=np.inf) < 0:
+            if m0.violation() <= measure.violation() + 1e-9 and not m0.point_inside_bone():
                 lines.append("  kept the warm start as given: it keeps every limit at the check poses and is no "
                              f"deeper into bone ({1e3 * m0.violation():.2f} mm; the rounds' result "
                              f"{1e3 * measure.violation():.2f} mm)")

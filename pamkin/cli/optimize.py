@@ -72,7 +72,8 @@ def add_parsers(sub) -> None:
     s.add_argument("--warm-start", metavar="RUN",
                    help="run folder whose design.yaml seeds the routes and sizes; its diameters and parallel counts are "
                         "tried first, the full loop only where they fail; a PAM whose warm start holds keeps its "
-                        "pulley-block ratio (overrides the config; default: none)")
+                        "pulley-block ratio, and its route where the continued bone rounds would end over a strain "
+                        "or force limit it keeps (overrides the config; default: none)")
     s.add_argument("--design", metavar="DESIGN",
                    help="seed design: a design file, a run folder, 'thesis', 'split_gluteal' or 'v2_seed' (overrides the config; default: "
                         "the config's, 'v2_seed')")
