@@ -188,13 +188,13 @@ class BoneCuts:
 
         k = self.n_right_only
         if k <= 0:
-            return self.bones.nearest(self.state, P, margin=ACTIVATION)
+            return self.bones.nearest(self.state, P, margin=ACTIVATION, prune=True)
         st = self.state
         a = self.bones.nearest(SimpleNamespace(body_R=st.body_R[:k], body_p=st.body_p[:k]), P[:k],
-                               margin=ACTIVATION, bodies=self.right_side)
+                               margin=ACTIVATION, bodies=self.right_side, prune=True)
         if k >= len(P):
             return a
-        b = self.bones.nearest(SimpleNamespace(body_R=st.body_R[k:], body_p=st.body_p[k:]), P[k:], margin=ACTIVATION)
+        b = self.bones.nearest(SimpleNamespace(body_R=st.body_R[k:], body_p=st.body_p[k:]), P[k:], margin=ACTIVATION, prune=True)
         return tuple(np.concatenate([x, y]) for x, y in zip(a, b))
 
     def measure(self, loc: np.ndarray, with_rows: bool = False):
@@ -406,7 +406,7 @@ def point_contact_poses(model, bones, rom, pam, seed: int, n: int = N_POINT_CHEC
         if not hasattr(pt, "location"):
             continue
         d, _ = bones.signed_distance(state, X[:, i:i + 1], margin=clearance,
-                                     bodies=[b for b in right if b != pt.body])
+                                     bodies=[b for b in right if b != pt.body], prune=True)
         worst = np.minimum(worst, d[:, 0])
     near = np.flatnonzero(worst < clearance)
     return q[near[np.argsort(worst[near])][:keep]]

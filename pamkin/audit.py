@@ -621,7 +621,10 @@ def _bone_checks(right: PamRobot, bones, sets: list, rows: list[dict], step: flo
         chunk = max(1, 400_000 // len(t_all))
         for c0 in range(0, len(A_all), chunk):
             P = A_all[c0:c0 + chunk] + t_all[None, :, None] * (B_all[c0:c0 + chunk] - A_all[c0:c0 + chunk])
-            dd, nb = bones.signed_distance(_slice_state(state, c0, c0 + chunk), P, margin=0.0, bodies=only)
+            # only penetrations count here: points a coarse grid proves outside every bone are skipped
+            # (BoneSet.far_from; every distance <= 0 is the exact one)
+            dd, nb = bones.signed_distance(_slice_state(state, c0, c0 + chunk), P, margin=0.0, bodies=only,
+                                           prune=True)
             col = np.argmin(dd, axis=0)
             depth = -dd[col, np.arange(len(t_all))]
             nbest = nb[col, np.arange(len(t_all))]

@@ -23,6 +23,11 @@ from .errors import DataFileError
 
 from ._resources import DEFAULT_GEOMETRY
 
+#: Spacing [m] of the coarse grid of exact distances that proves points far from a bone
+#: (:meth:`BoneSet.far_from`; a point is at most ``PRUNE_STEP * sqrt(3) / 2`` from its node).
+PRUNE_STEP = 0.004
+#: The grid covers each bone's bounding box and this much more on every side [m].
+PRUNE_PAD = 0.03
 #: Margin [m] within which a numpy segment distance is confirmed with coal before it decides an overlap.
 OVERLAP_GUARD = 1e-6
 
@@ -66,6 +71,19 @@ class BoneMesh:
     vertices: np.ndarray
     faces: np.ndarray
     files: tuple[str, ...]
+
+    @property
+    def closed(self) -> bool:
+        """Whether the surface is closed and consistently oriented: every directed edge of a triangle
+        appears once and its reverse once (then points that no surface separates are on the same
+        side of it, inside or outside)."""
+        f = self.faces
+        e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        directed = np.unique(e, axis=0)
+        if len(directed) != len(e):
+            return False
+        rev = {tuple(x) for x in directed[:, ::-1].tolist()}
+        return rev == {tuple(x) for x in directed.tolist()}
 
 
 class BoneSet:
@@ -121,12 +139,16 @@ class BoneSet:
         """
         return self.body_closest(body, points)[0]
 
-    def body_closest(self, body: str, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def body_closest(self, body: str, points: np.ndarray,
+                     far: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Signed distance, closest bone-surface point and outward unit normal, in ``body``'s frame.
 
         Args:
             body: Body name.
             points: (K, 3) in the body frame [m].
+            far: If given [m], points that :meth:`far_from` proves farther than this outside the bone
+                are not looked up: ``+inf`` and NaN for them, as for points not queried. Every
+                distance up to ``far`` (and every point inside) is the exact one.
 
         Returns:
             ``(d, c, n)``: (K,) signed distances [m] (negative inside; ``+inf`` for a body without
@@ -139,6 +161,7 @@ class BoneSet:
         N = np.full((len(P), 3), np.nan)
         if len(P) == 0:
             return out, C, N
+        pruned = self.far_from(body, P, far) if far is not None else None
         for m in self.meshes.get(body, []):
             tree, fwn = self._trees(m)
             # what igl.signed_distance(..., SIGNED_DISTANCE_TYPE_FAST_WINDING_NUMBER) computes, with its
@@ -146,24 +169,94 @@ class BoneSet:
             # (AABB tree) and the sign 1 - 2|w| of the fast winding number (order 2, accuracy 2);
             # libigl scales the distance by that continuous sign: keep only the sign and take the
             # exact distance to the closest surface point
-            _, face, closest = tree.squared_distance(m.vertices, m.faces, P)
+            if pruned is not None and self._closed(m):
+                # farther than ``far`` from every surface, in a ball around an outside node that no surface
+                # crosses: outside this closed mesh too (skipped without its winding number)
+                look = np.flatnonzero(~pruned)
+                if len(look) == 0:
+                    continue
+                w = fwn.winding_number(P[look], 2.0)
+                sign = np.where(1.0 - 2.0 * np.abs(w) < 0, -1.0, 1.0)
+                d, c, n = self._mesh_closest(m, tree, P[look], sign)
+                better = d < out[look]
+                idx = look[better]
+                out[idx], C[idx], N[idx] = d[better], c[better], n[better]
+                continue
             w = fwn.winding_number(P, 2.0)
             sign = np.where(1.0 - 2.0 * np.abs(w) < 0, -1.0, 1.0)
-            diff = P - closest
-            dist = np.linalg.norm(diff, axis=1)
-            s = sign * dist
-            # normal: from the closest point towards the query point (outward for points outside,
-            # reversed inside); on the surface itself, the closest face's normal
-            tri = m.vertices[m.faces[face]]
-            fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-            fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
-            on = dist < 1e-9
-            nrm = np.where(on[:, None], fn, sign[:, None] * diff / np.maximum(dist, 1e-300)[:, None])
-            better = s < out
-            out[better] = s[better]
-            C[better] = closest[better]
-            N[better] = nrm[better]
+            if pruned is not None:
+                # farther than ``far`` from every surface: skipped where the sign says outside (an open
+                # mesh's winding number can say inside away from its surface: those are looked up)
+                look = np.flatnonzero(~(pruned & (sign > 0)))
+                if len(look) == 0:
+                    continue
+                if len(look) < len(P):
+                    d, c, n = self._mesh_closest(m, tree, P[look], sign[look])
+                    better = d < out[look]
+                    idx = look[better]
+                    out[idx], C[idx], N[idx] = d[better], c[better], n[better]
+                    continue
+            d, c, n = self._mesh_closest(m, tree, P, sign)
+            better = d < out
+            out[better] = d[better]
+            C[better] = c[better]
+            N[better] = n[better]
         return out, C, N
+
+    def _closed(self, mesh: BoneMesh) -> bool:
+        """:attr:`BoneMesh.closed`, computed once per mesh in this process."""
+        cache = self.__dict__.setdefault("_closed_cache", {})
+        if id(mesh) not in cache:
+            cache[id(mesh)] = (mesh, mesh.closed)
+        return cache[id(mesh)][1]
+
+    @staticmethod
+    def _mesh_closest(m: BoneMesh, tree, P: np.ndarray, sign: np.ndarray):
+        """Signed distance (sign given), closest point and outward normal of points ``P`` to mesh ``m``."""
+        _, face, closest = tree.squared_distance(m.vertices, m.faces, P)
+        diff = P - closest
+        dist = np.linalg.norm(diff, axis=1)
+        s = sign * dist
+        # normal: from the closest point towards the query point (outward for points outside,
+        # reversed inside); on the surface itself, the closest face's normal
+        tri = m.vertices[m.faces[face]]
+        fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+        on = dist < 1e-9
+        nrm = np.where(on[:, None], fn, sign[:, None] * diff / np.maximum(dist, 1e-300)[:, None])
+        return s, closest, nrm
+
+    def far_from(self, body: str, points: np.ndarray, far: float) -> np.ndarray:
+        """(K,) mask of the points (body frame [m]) proved farther than ``far`` [m] from every surface of
+        ``body``'s bone, from a coarse grid of exact distances (spacing :data:`PRUNE_STEP`, nodes
+        computed when first needed and kept in this process): the distance to a surface is 1-Lipschitz,
+        so a point at ``r`` from a node whose distance is ``d`` lies at least ``d − r`` from it. Points off
+        the grid (more than :data:`PRUNE_PAD` outside the bone's bounding box) and points whose node is
+        inside bone are never in the mask."""
+        P = np.asarray(points, float).reshape(-1, 3)
+        mask = np.zeros(len(P), dtype=bool)
+        if body not in self._box or len(P) == 0:
+            return mask
+        cache = self.__dict__.setdefault("_grid_cache", {})
+        if body not in cache:
+            lo, hi = self._box[body]
+            origin = lo - PRUNE_PAD
+            shape = np.ceil((hi - lo + 2 * PRUNE_PAD) / PRUNE_STEP).astype(int) + 1
+            cache[body] = (origin, shape, np.full(int(np.prod(shape)), np.nan))
+        origin, shape, grid = cache[body]
+        ijk = np.rint((P - origin) / PRUNE_STEP).astype(np.int64)
+        on = np.all((ijk >= 0) & (ijk < shape), axis=1)
+        if not on.any():
+            return mask
+        flat = np.ravel_multi_index(ijk[on].T, shape)
+        todo = np.unique(flat[np.isnan(grid[flat])])
+        if len(todo):
+            nodes = origin + PRUNE_STEP * np.stack(np.unravel_index(todo, shape), axis=1)
+            grid[todo] = self.body_closest(body, nodes)[0]
+        node = origin + PRUNE_STEP * ijk[on]
+        r = np.linalg.norm(P[on] - node, axis=1)
+        mask[on] = grid[flat] - r > far
+        return mask
 
     def _trees(self, mesh: BoneMesh):
         """libigl's AABB tree and fast-winding-number hierarchy of a mesh, built on first use in this
@@ -183,10 +276,12 @@ class BoneSet:
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
         state.pop("_tree_cache", None)
+        state.pop("_grid_cache", None)
+        state.pop("_closed_cache", None)
         return state
 
-    def nearest(self, state, points: np.ndarray, margin: float = 0.0,
-                bodies: list[str] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def nearest(self, state, points: np.ndarray, margin: float = 0.0, bodies: list[str] | None = None,
+                prune: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Like :meth:`signed_distance`, with the closest surface point and outward normal of the
         nearest bone, in the world frame.
 
@@ -195,10 +290,10 @@ class BoneSet:
             (-1 where no bone was queried), (S, K, 3) closest points [m] and (S, K, 3) unit normals
             (NaN where no bone was queried).
         """
-        return self._query(state, points, margin, bodies, closest=True)
+        return self._query(state, points, margin, bodies, closest=True, prune=prune)
 
     def signed_distance(self, state, points: np.ndarray, margin: float = 0.0,
-                        bodies: list[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                        bodies: list[str] | None = None, prune: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance of world points to every bone, posed by a kinematics state.
 
         Args:
@@ -208,14 +303,18 @@ class BoneSet:
                 for that bone (their distance is reported as +inf when no bone is near): use it
                 when only penetrations or near contacts matter. ``None``: query every bone.
             bodies: Bones to test (default: all).
+            prune: Also leave out, per bone, the points that a coarse grid proves farther than
+                ``margin`` from it (:meth:`far_from`; needs a ``margin``): every distance up to
+                ``margin`` is unchanged, larger ones may be reported as +inf (faster where most
+                points are far).
 
         Returns:
             ``(d, nearest)``: (S, K) signed distances [m] (negative inside bone) and (S, K)
             index into :attr:`bodies` of the nearest bone (-1 where none was queried).
         """
-        return self._query(state, points, margin, bodies, closest=False)[:2]
+        return self._query(state, points, margin, bodies, closest=False, prune=prune)[:2]
 
-    def _query(self, state, points, margin, bodies, closest: bool):
+    def _query(self, state, points, margin, bodies, closest: bool, prune: bool = False):
         X = np.asarray(points, float)
         S, K = X.shape[:2]
         d = np.full((S, K), np.inf)
@@ -237,10 +336,11 @@ class BoneSet:
                 mask = np.all((local >= lo - margin) & (local <= hi + margin), axis=2)
             if not mask.any():
                 continue
+            far = margin if prune and margin is not None else None
             if closest:
-                s, c, n = self.body_closest(body, local[mask])
+                s, c, n = self.body_closest(body, local[mask], far=far)
             else:
-                s = self.body_signed_distance(body, local[mask])
+                s = self.body_closest(body, local[mask], far=far)[0]
             cur = d[mask]
             better = s < cur
             cur[better] = s[better]

@@ -177,6 +177,56 @@ def test_cached_hierarchies_give_libigl_signed_distance(skel):
     np.testing.assert_allclose(again.body_closest(body, P)[0], d, atol=0)
 
 
+
+def _assert_pruned_exact(bones, body, P, far):
+    """``body_closest(..., far=far)`` equals the full query wherever that is <= far (inside bone too);
+    farther points are exact or +inf."""
+    d, c, n = bones.body_closest(body, P)
+    dp, cp, n_p = bones.body_closest(body, P, far=far)
+    near = d <= far
+    np.testing.assert_array_equal(dp[near], d[near])
+    np.testing.assert_array_equal(cp[near], c[near])
+    np.testing.assert_array_equal(n_p[near], n[near])
+    assert np.all((dp[~near] == d[~near]) | np.isinf(dp[~near]))
+    return d, dp
+
+
+def test_pruned_queries_keep_every_near_distance(skel):
+    """The coarse-grid pruning (BoneSet.far_from) changes no distance up to its margin: around every
+    Gait2392 bone, and on an open hemisphere whose winding number says "inside" across its opening,
+    more than the margin from its surface (those points are looked up, not pruned)."""
+    human = pamkin.gait2392()
+    try:
+        bones = BoneSet(human)
+    except DataFileError:
+        pytest.skip("no Gait2392 bone meshes here")
+    rng = np.random.default_rng(11)
+    pruned = 0
+    for body in bones.bodies:
+        lo, hi = bones._box[body]
+        P = rng.uniform(lo - 0.03, hi + 0.03, (3000, 3))
+        for _ in range(2):                             # the second call reuses the grid's nodes
+            d, dp = _assert_pruned_exact(bones, body, P, 0.01)
+        pruned += int(np.sum(np.isinf(dp) & np.isfinite(d)))
+    assert pruned > 10000                              # it does prune
+    s = trimesh.creation.icosphere(subdivisions=4, radius=0.05)
+    top = s.faces[s.vertices[s.faces].mean(axis=1)[:, 2] > 0]
+    cup = BoneSet.from_meshes(skel, {"femur_r": [(s.vertices, top)]})
+    xy = rng.uniform(-0.02, 0.02, (4000, 2))
+    P = np.column_stack([xy, rng.uniform(-0.012, 0.012, 4000)])   # across the opening, >= 0.02 from the rim
+    d, dp = _assert_pruned_exact(cup, "femur_r", P, 0.01)
+    assert np.sum(d < -0.01) > 100 and np.sum(np.isinf(dp)) > 100   # far "inside" kept, far outside pruned
+    assert not cup.meshes["femur_r"][0].closed
+    ball = BoneSet.from_meshes(skel, {"femur_r": [(s.vertices, s.faces)]})
+    assert ball.meshes["femur_r"][0].closed                 # closed: the far points skip the winding number
+    P = rng.uniform(-0.08, 0.08, (4000, 3))
+    d, dp = _assert_pruned_exact(ball, "femur_r", P, 0.01)
+    assert np.sum(d < -0.01) > 100 and np.sum(np.isinf(dp)) > 100
+    flipped = s.faces.copy()
+    flipped[0] = flipped[0, ::-1]
+    assert not BoneSet.from_meshes(skel, {"femur_r": [(s.vertices, flipped)]}).meshes["femur_r"][0].closed
+
+
 # ----------------------------------------------------------------------------- samples
 def test_pam_body_lies_on_its_route_from_its_mount_segment():
     """pamkin.pam_body.pam_capsules: the body starts at its mount segment's start; where the route ends
