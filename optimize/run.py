@@ -1118,8 +1118,11 @@ def _write_summary(out_dir: Path, summary: dict) -> None:
     atomic_write(out_dir / "summary.json", json.dumps(finite_or_none(summary), indent=2, allow_nan=False))
 
 
-def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -> dict:
+def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, on_design=None) -> dict:
     """Run an optimisation into ``out_dir`` (created); optionally apply the result.
+
+    ``on_design`` (optional) is called with ``out_dir`` as soon as the result's ``design.yaml`` is written,
+    before the run's own check and plot (``pamkin optimize`` starts its audit there, beside them).
 
     Returns:
         The summary (also written to ``out_dir/summary.json``).
@@ -1172,6 +1175,9 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         new, ends = choose_ends(new, _STATE["human"], _STATE["rom"], cfg.seed)
         for line in ends:
             print(line, file=stream, flush=True)
+    save_design(new, out_dir / "design.yaml", _run_header(out_dir, cfg))
+    if on_design is not None:
+        on_design(out_dir)
     for r in results:
         log.append(f"actuator {r.id} {r.name}: {r.status} in {r.seconds:.1f} s; attempts: " +
                    "; ".join(f"{a['diameter_mm']} mm x{a['n_parallel']} {a['start']}: {a['status']} "
@@ -1210,7 +1216,6 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr) -
         summary["walking_check"] = _STATE["walking"]      # optimize.gait_check: fractions between the trial's frames
     summary["solve_seconds"] = round(solve_seconds, 1)
     summary["total_seconds"] = round(time.perf_counter() - t0, 1)
-    save_design(new, out_dir / "design.yaml", _run_header(out_dir, cfg))
     _write_summary(out_dir, summary)
     before_after_plot(seed, new, out_dir / "before_after.png")
     log.extend(ends)

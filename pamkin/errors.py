@@ -10,6 +10,19 @@ from __future__ import annotations
 class PamkinError(Exception):
     """Base class of every error raised by pamkin."""
 
+    def __reduce__(self):
+        # picklable whatever the subclass's __init__ takes (an error raised in a worker process reaches
+        # the parent intact: its message, type and attributes)
+        return _rebuild_error, (type(self), self.args, dict(self.__dict__))
+
+
+def _rebuild_error(cls: type, args: tuple, state: dict) -> PamkinError:
+    """A pamkin error from its pickled parts (see :meth:`PamkinError.__reduce__`)."""
+    err = cls.__new__(cls)
+    Exception.__init__(err, *args)
+    err.__dict__.update(state)
+    return err
+
 
 class OsimError(PamkinError):
     """A problem in an OpenSim ``.osim`` file.

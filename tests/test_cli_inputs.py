@@ -273,3 +273,70 @@ def test_thesis_quick_audit_is_cached_by_its_inputs(tmp_path, monkeypatch):
     assert cli_opt._audit_inputs_key(AuditOptions.quick()) != cli_opt._audit_inputs_key(AuditOptions.quick(n_random=501))
     entries[0].write_bytes(b"not a pickle")
     assert cli_opt.thesis_quick_audit() == first and len(calls) == 2            # damaged: computed again
+
+
+def _untimed(audit) -> str:
+    """An audit's dictionary as JSON without its run time."""
+    import json
+
+    d = audit.to_dict()
+    d.pop("seconds", None)
+    return json.dumps(d, default=float, sort_keys=True)
+
+
+def test_background_audit_equals_the_audit_in_this_process(tmp_path, monkeypatch):
+    """`pamkin optimize` audits its result in a forked process beside its own check and plot: the same
+    audit as in this process (a small audit of the thesis design's routes, every part but the gait plan);
+    an error in that process reaches the command as the same pamkin error (the run then says the audit was
+    skipped), a process that dies leaves the audit to this one, and a run that fails stops it."""
+    from pamkin.audit import AuditOptions, audit_design
+    from pamkin.cli import optimize as cli_opt
+    from pamkin.design import load_design, save_design
+
+    small = AuditOptions(n_random=120, gait_ik=None, gait_plan=False, n_geometry=20, n_sweep=11, n_grid=5,
+                         segment_step_m=0.01)
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    save_design(load_design("thesis"), run_dir / "design.yaml")
+    try:
+        direct = audit_design(run_dir, options=small)
+    except DataFileError as e:
+        pytest.skip(f"no bone meshes here: {e}")
+    bg = cli_opt.BackgroundAudit(small)
+    bg.start(run_dir)
+    res = bg.result(run_dir)
+    assert bg._pool is None                                   # the process is gone
+    assert _untimed(res) == _untimed(direct)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    bg.start(empty)                                           # no design.yaml: a DataFileError over there
+    with pytest.raises(DataFileError, match="design.yaml"):
+        bg.result(empty)
+    bg.start(empty)
+    monkeypatch.setattr(cli_opt, "thesis_quick_audit", lambda: direct)
+    with open(os.devnull, "w") as quiet:
+        text = cli_opt.audit_side_by_side(empty, quiet, bg)
+    assert text.startswith("\nAudit skipped (") and "design.yaml" in text and bg._pool is None
+    bg.start(run_dir)
+    for proc in list(bg._pool._processes.values()):       # the process dies: audited here instead
+        proc.kill()
+    res = bg.result(run_dir)
+    assert _untimed(res) == _untimed(direct)
+    bg.start(run_dir)
+    bg.close()
+    assert bg._pool is None and bg._job is None
+
+
+def test_pamkin_errors_cross_process_boundaries():
+    """Every pamkin error pickles with its type, message and attributes (an error raised in a worker or in
+    the background audit reaches the command intact, instead of breaking the process pool)."""
+    import pickle
+
+    from pamkin.errors import OsimError, StorageFileError, UnsupportedFeatureError
+
+    for err in (StorageFileError("/a/trial.mot", "file not found", column="knee_angle_r"),
+                UnsupportedFeatureError("/m.osim", "not supported", element="Ligament"),
+                OsimError("/m.osim", "bad value", element="Body"), DataFileError("/d.yaml", "missing key"),
+                ConfigurationError("bad key")):
+        back = pickle.loads(pickle.dumps(err))
+        assert type(back) is type(err) and str(back) == str(err) and back.__dict__ == err.__dict__

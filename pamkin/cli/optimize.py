@@ -105,22 +105,101 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     cfg.validate()
     out = Path(args.out) if args.out else Path("runs") / time.strftime("%Y%m%d-%H%M%S")
     stream = open("/dev/null", "w") if args.quiet else sys.stderr  # noqa: SIM115
+    audit = None if args.no_audit else BackgroundAudit()
     try:
-        summary = run(cfg, out, apply=args.apply, stream=stream)
+        summary = run(cfg, out, apply=args.apply, stream=stream, on_design=audit.start if audit else None)
     except InfeasibleError as e:
+        if audit is not None:
+            audit.close()
         print(f"pamkin optimize: {e}\nnothing was written into the robot data; see {out}", file=sys.stderr)
         return 3
-    audit_text = None if args.no_audit else audit_side_by_side(out, stream)
+    except BaseException:
+        if audit is not None:
+            audit.close()
+        raise
+    audit_text = None if audit is None else audit_side_by_side(out, stream, audit)
     print_summary(summary, out, audit_text)
     return 0
 
 
-def audit_side_by_side(out: Path, stream) -> str:
-    """``pamkin audit --quick`` of the run's design and of the thesis design: the table, and both
-    scorecards written into the run folder (``audit.json``, ``scorecard.txt``, ``audit_thesis.json``)."""
+class BackgroundAudit:
+    """``pamkin audit --quick`` of a run folder's design in a separate process, started as soon as the
+    run has written ``design.yaml`` (:func:`pamkin.optimize.run.run`'s ``on_design``), so that it runs on
+    the second core beside the run's own check and plot. The process is spawned, not forked (a process
+    that has used OpenMP, as libigl's queries do, must not fork), and has one BLAS thread; its result is the
+    same as :func:`pamkin.audit.audit_design` here (the audit is deterministic). Should that process die,
+    the audit is computed here instead.
+
+    Args:
+        options: The audit's options (default: :meth:`pamkin.audit.AuditOptions.quick`).
+    """
+
+    def __init__(self, options=None) -> None:
+        self.options = options
+        self._pool = None
+        self._job = None
+
+    def _options(self):
+        from ..audit import AuditOptions  # noqa: PLC0415
+
+        return self.options if self.options is not None else AuditOptions.quick()
+
+    def start(self, out_dir: Path) -> None:
+        import multiprocessing as mp  # noqa: PLC0415
+        from concurrent.futures import ProcessPoolExecutor  # noqa: PLC0415
+
+        from ..audit import audit_design  # noqa: PLC0415
+
+        self.close()
+        self._pool = ProcessPoolExecutor(1, mp_context=mp.get_context("spawn"), initializer=_one_blas_thread)
+        self._job = self._pool.submit(audit_design, Path(out_dir), options=self._options())
+
+    def result(self, out_dir: Path):
+        """The audit of ``out_dir``'s design: the background one, or computed here if none was started
+        (or its process died). Raises what the audit raises."""
+        from concurrent.futures.process import BrokenProcessPool  # noqa: PLC0415
+
+        from ..audit import audit_design  # noqa: PLC0415
+
+        job = self._job
+        try:
+            if job is not None:
+                return job.result()
+        except BrokenProcessPool:
+            pass
+        finally:
+            self.close()
+        return audit_design(out_dir, options=self._options())
+
+    def close(self) -> None:
+        """Stop the background process (if any)."""
+        if self._pool is not None:
+            if self._job is not None:
+                self._job.cancel()
+            for proc in list((getattr(self._pool, "_processes", None) or {}).values()):
+                proc.terminate()
+            self._pool.shutdown(wait=True, cancel_futures=True)
+        self._pool = None
+        self._job = None
+
+
+def _one_blas_thread() -> None:
+    """Initializer of the background audit's process: one BLAS thread (the run's check uses the other core)."""
+    from threadpoolctl import threadpool_limits  # noqa: PLC0415
+
+    global _BLAS_LIMIT
+    _BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")
+
+
+_BLAS_LIMIT = None
+
+
+def audit_side_by_side(out: Path, stream, audit: BackgroundAudit | None = None) -> str:
+    """``pamkin audit --quick`` of the run's design (``audit``'s, where it was started in the background)
+    and of the thesis design: the table, and both scorecards written into the run folder (``audit.json``,
+    ``scorecard.txt``, ``audit_thesis.json``)."""
     import json  # noqa: PLC0415
 
-    from ..audit import AuditOptions, audit_design  # noqa: PLC0415
     from ..audit_report import scorecard_text, side_by_side  # noqa: PLC0415
     from ..urdf_build import atomic_write  # noqa: PLC0415
 
@@ -128,9 +207,11 @@ def audit_side_by_side(out: Path, stream) -> str:
 
     print("auditing the result and the thesis design (pamkin audit --quick) ...", file=stream, flush=True)
     try:
-        res = audit_design(out, options=AuditOptions.quick())
         thesis = thesis_quick_audit()
+        res = (audit or BackgroundAudit()).result(out)
     except PamkinError as e:      # e.g. no bone meshes or walking trial on this machine: the run stands
+        if audit is not None:
+            audit.close()
         return f"\nAudit skipped ({e}); run pamkin audit {out} with --geometry/--ik where that data is.\n"
     atomic_write(out / "audit.json", json.dumps(res.to_dict(), indent=1, default=float, allow_nan=False))
     atomic_write(out / "audit_thesis.json", json.dumps(thesis.to_dict(), indent=1, default=float, allow_nan=False))
