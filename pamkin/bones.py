@@ -6,6 +6,9 @@ frame. Signed distances are libigl's ``signed_distance`` with the *fast winding 
 tree and winding-number hierarchy built once per mesh)
 (robust for the open meshes Gait2392 ships: half pelvis, foot, spine), **negative inside bone**.
 The distance to a body's bone is the minimum over that body's meshes (the union of them).
+Queries that only need distances up to a margin can skip the points a coarse grid of exact distances
+proves farther than it (``prune=True``, :meth:`BoneSet.far_from`): every distance up to the margin is
+unchanged.
 
 Distances between PAM bodies (capsules) use coal (hpp-fcl), Pinocchio's collision library.
 """

@@ -79,8 +79,9 @@ def add_parsers(sub) -> None:
                         "the config's, 'v2_seed')")
     s.add_argument("--quiet", action="store_true", help="no progress lines on stderr (default: progress shown)")
     s.add_argument("--no-audit", action="store_true",
-                   help="skip the final `pamkin audit --quick` of the result and of the thesis design "
-                        "(default: both audited, scorecards side by side, written to the run folder)")
+                   help="skip the `pamkin audit --quick` of the result and of the thesis design "
+                        "(default: both audited, the result's in a second process as soon as its design is "
+                        "written; scorecards side by side, written to the run folder)")
     s.set_defaults(func=cmd_optimize)
 
 
