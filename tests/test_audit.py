@@ -31,6 +31,15 @@ def skel():
     return robot_skeleton()
 
 
+@pytest.fixture(scope="module")
+def gait_bones():
+    """Gait2392's bone meshes (the test is skipped where they are not installed)."""
+    try:
+        return BoneSet(pamkin.gait2392())
+    except DataFileError:
+        pytest.skip("no Gait2392 bone meshes here")
+
+
 # ----------------------------------------------------------------------------- geometry
 def test_point_depth_inside_closed_box(skel):
     box = trimesh.creation.box(extents=(0.1, 0.2, 0.3))
@@ -147,16 +156,13 @@ def test_body_pair_distance_by_hand():
     assert d == pytest.approx(0.02 - 0.045, abs=1e-12) and s in (1, 2, 3)
 
 
-def test_cached_hierarchies_give_libigl_signed_distance(skel):
+def test_cached_hierarchies_give_libigl_signed_distance(gait_bones):
     """BoneSet's distances (AABB tree and winding-number hierarchy built once per mesh) equal
     igl.signed_distance's with the fast-winding-number sign, on points around every Gait2392 bone."""
     import igl
 
-    human = pamkin.gait2392()
-    try:
-        bones = BoneSet(human)
-    except DataFileError:
-        pytest.skip("no Gait2392 bone meshes here")
+    bones = gait_bones
+    human = bones.model
     rng = np.random.default_rng(7)
     for body in bones.bodies:
         for m in bones.meshes[body]:
@@ -191,15 +197,11 @@ def _assert_pruned_exact(bones, body, P, far):
     return d, dp
 
 
-def test_pruned_queries_keep_every_near_distance(skel):
+def test_pruned_queries_keep_every_near_distance(skel, gait_bones):
     """The coarse-grid pruning (BoneSet.far_from) changes no distance up to its margin: around every
     Gait2392 bone, and on an open hemisphere whose winding number says "inside" across its opening,
     more than the margin from its surface (those points are looked up, not pruned)."""
-    human = pamkin.gait2392()
-    try:
-        bones = BoneSet(human)
-    except DataFileError:
-        pytest.skip("no Gait2392 bone meshes here")
+    bones = gait_bones
     rng = np.random.default_rng(11)
     pruned = 0
     for body in bones.bodies:
