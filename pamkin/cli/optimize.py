@@ -152,8 +152,11 @@ class BackgroundAudit:
         from ..audit import audit_design  # noqa: PLC0415
 
         self.close()
-        self._pool = ProcessPoolExecutor(1, mp_context=mp.get_context("spawn"), initializer=_one_blas_thread)
-        self._job = self._pool.submit(audit_design, Path(out_dir), options=self._options())
+        try:
+            self._pool = ProcessPoolExecutor(1, mp_context=mp.get_context("spawn"), initializer=_one_blas_thread)
+            self._job = self._pool.submit(audit_design, Path(out_dir), options=self._options())
+        except (OSError, RuntimeError):       # no second process here: result() audits in this one
+            self.close()
 
     def result(self, out_dir: Path):
         """The audit of ``out_dir``'s design: the background one, or computed here if none was started
