@@ -15,6 +15,7 @@ Distances between PAM bodies (capsules) use coal (hpp-fcl), Pinocchio's collisio
 
 from __future__ import annotations
 
+import functools
 import os
 import warnings
 from dataclasses import dataclass
@@ -75,7 +76,7 @@ class BoneMesh:
     faces: np.ndarray
     files: tuple[str, ...]
 
-    @property
+    @functools.cached_property
     def closed(self) -> bool:
         """Whether the surface is closed and consistently oriented: every directed edge of a triangle
         appears once and its reverse once (then points that no surface separates are on the same
@@ -172,46 +173,28 @@ class BoneSet:
             # (AABB tree) and the sign 1 - 2|w| of the fast winding number (order 2, accuracy 2);
             # libigl scales the distance by that continuous sign: keep only the sign and take the
             # exact distance to the closest surface point
-            if pruned is not None and self._closed(m):
+            idx = np.arange(len(P))
+            closed = pruned is not None and m.closed
+            if closed:
                 # farther than ``far`` from every surface, in a ball around an outside node that no surface
                 # crosses: outside this closed mesh too (skipped without its winding number)
-                look = np.flatnonzero(~pruned)
-                if len(look) == 0:
+                idx = np.flatnonzero(~pruned)
+                if len(idx) == 0:
                     continue
-                w = fwn.winding_number(P[look], 2.0)
-                sign = np.where(1.0 - 2.0 * np.abs(w) < 0, -1.0, 1.0)
-                d, c, n = self._mesh_closest(m, tree, P[look], sign)
-                better = d < out[look]
-                idx = look[better]
-                out[idx], C[idx], N[idx] = d[better], c[better], n[better]
-                continue
-            w = fwn.winding_number(P, 2.0)
+            w = fwn.winding_number(P[idx], 2.0)
             sign = np.where(1.0 - 2.0 * np.abs(w) < 0, -1.0, 1.0)
-            if pruned is not None:
+            if pruned is not None and not closed:
                 # farther than ``far`` from every surface: skipped where the sign says outside (an open
                 # mesh's winding number can say inside away from its surface: those are looked up)
-                look = np.flatnonzero(~(pruned & (sign > 0)))
-                if len(look) == 0:
-                    continue
-                if len(look) < len(P):
-                    d, c, n = self._mesh_closest(m, tree, P[look], sign[look])
-                    better = d < out[look]
-                    idx = look[better]
-                    out[idx], C[idx], N[idx] = d[better], c[better], n[better]
-                    continue
-            d, c, n = self._mesh_closest(m, tree, P, sign)
-            better = d < out
-            out[better] = d[better]
-            C[better] = c[better]
-            N[better] = n[better]
+                keep = ~(pruned[idx] & (sign > 0))
+                idx, sign = idx[keep], sign[keep]
+            if len(idx) == 0:
+                continue
+            d, c, n = self._mesh_closest(m, tree, P[idx], sign)
+            better = d < out[idx]
+            j = idx[better]
+            out[j], C[j], N[j] = d[better], c[better], n[better]
         return out, C, N
-
-    def _closed(self, mesh: BoneMesh) -> bool:
-        """:attr:`BoneMesh.closed`, computed once per mesh in this process."""
-        cache = self.__dict__.setdefault("_closed_cache", {})
-        if id(mesh) not in cache:
-            cache[id(mesh)] = (mesh, mesh.closed)
-        return cache[id(mesh)][1]
 
     @staticmethod
     def _mesh_closest(m: BoneMesh, tree, P: np.ndarray, sign: np.ndarray):
@@ -280,7 +263,6 @@ class BoneSet:
         state = dict(self.__dict__)
         state.pop("_tree_cache", None)
         state.pop("_grid_cache", None)
-        state.pop("_closed_cache", None)
         return state
 
     def nearest(self, state, points: np.ndarray, margin: float = 0.0, bodies: list[str] | None = None,

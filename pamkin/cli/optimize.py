@@ -149,11 +149,14 @@ class BackgroundAudit:
         import multiprocessing as mp  # noqa: PLC0415
         from concurrent.futures import ProcessPoolExecutor  # noqa: PLC0415
 
+        from pamkin.optimize.run import _limit_worker  # noqa: PLC0415
+
         from ..audit import audit_design  # noqa: PLC0415
 
         self.close()
         try:
-            self._pool = ProcessPoolExecutor(1, mp_context=mp.get_context("spawn"), initializer=_one_blas_thread)
+            self._pool = ProcessPoolExecutor(1, mp_context=mp.get_context("spawn"),
+                                             initializer=_limit_worker)
             self._job = self._pool.submit(audit_design, Path(out_dir), options=self._options())
         except (OSError, RuntimeError):       # no second process here: result() audits in this one
             self.close()
@@ -185,17 +188,6 @@ class BackgroundAudit:
             self._pool.shutdown(wait=True, cancel_futures=True)
         self._pool = None
         self._job = None
-
-
-def _one_blas_thread() -> None:
-    """Initializer of the background audit's process: one BLAS thread (the run's check uses the other core)."""
-    from threadpoolctl import threadpool_limits  # noqa: PLC0415
-
-    global _BLAS_LIMIT
-    _BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")
-
-
-_BLAS_LIMIT = None
 
 
 def audit_side_by_side(out: Path, stream, audit: BackgroundAudit | None = None) -> str:
