@@ -10,8 +10,11 @@ import numpy as np
 from pamkin.design import Design
 
 
-def before_after_plot(seed: Design, new: Design, path: Path, n: int = 61) -> Path:
-    """Human, seed-design and optimised-design torque about each PAM's primary coordinate (others 0)."""
+def before_after_plot(seed: Design, new: Design, path: Path, n: int = 61, seed_label: str | None = None) -> Path:
+    """Human, seed-design and optimised-design torque about each PAM's primary coordinate (others 0).
+
+    ``seed_label`` names the seed's curves in the legend (default: the seed design's name; a warm-started
+    run passes the run folder it started from)."""
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
@@ -41,7 +44,7 @@ def before_after_plot(seed: Design, new: Design, path: Path, n: int = 61) -> Pat
         idx = [human.muscles.index(m) for m in pam.human_muscles]
         x = np.degrees(q[:, ci])
         ax.plot(x, human.torques(q)[:, idx, ci].sum(1), "k-", lw=2, label="human (Gait2392)")
-        ax.plot(x, rb.evaluate(q).torques[:, k, ci], "C3--", label=f"{seed.name}")
+        ax.plot(x, rb.evaluate(q).torques[:, k, ci], "C3--", label=seed_label or seed.name)
         ax.plot(x, ra.evaluate(q).torques[:, k, ci], "C0-", label="optimised")
         title = f"{pid} {pam.name}"
         wrap = len(title) > 30

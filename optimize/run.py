@@ -1217,7 +1217,8 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, o
     summary["solve_seconds"] = round(solve_seconds, 1)
     summary["total_seconds"] = round(time.perf_counter() - t0, 1)
     _write_summary(out_dir, summary)
-    before_after_plot(seed, new, out_dir / "before_after.png")
+    before_after_plot(seed, new, out_dir / "before_after.png",
+                      seed_label=f"warm start ({Path(cfg.warm_start).name})" if warm_ids else None)
     log.extend(ends)
     log.append(f"total {summary['total_seconds']} s (solves {solve_seconds:.1f} s)")
     atomic_write(out_dir / "log.txt", "\n".join(log) + "\n")

@@ -137,10 +137,22 @@ def test_apply_and_warm_start(tmp_path, monkeypatch):
     # warm start from that run: the objective cannot get worse
     cfg2 = RunConfig(**{**FAST_FIT, "multistart": 0}, actuators=[26], workers=1, diameters_mm=[20], max_parallel=1,
                      warm_start=str(tmp_path / "run1"))
+    import matplotlib.axes
+
+    legends = []
+    real_legend = matplotlib.axes.Axes.legend
+
+    def legend(ax, *a, **kw):
+        legends.append([line.get_label() for line in ax.get_lines()])
+        return real_legend(ax, *a, **kw)
+
+    monkeypatch.setattr(matplotlib.axes.Axes, "legend", legend)
     s2 = run(cfg2, tmp_path / "run2")
     assert s2["actuators"][0]["nrmse_after"] <= a1["nrmse_after"] + 1e-3
     for f in ("design.yaml", "summary.json", "log.txt", "before_after.png"):
         assert (tmp_path / "run2" / f).stat().st_size > 0
+    # the plot's dashed curves are the warm start's, and the legend says so (not the seed design's name)
+    assert legends == [["human (Gait2392)", "warm start (run1)", "optimised"]]
 
 
 @pytest.mark.parametrize("text,match", [
