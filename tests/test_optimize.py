@@ -1222,3 +1222,28 @@ def test_warm_start_keeps_its_transmission(blocks, monkeypatch):
     else:
         assert calls == [] and sol is best and direct is None and not info["mounted"]
         assert info["line"].endswith("no pulley block tried (warm start: its transmission kept)")
+
+
+def test_shared_subexpressions_keep_every_value(semimem_problem, monkeypatch):
+    """The problem's objective and rows are one graph with each distinct subexpression once
+    (:data:`~pamkin.optimize.problem.SHARED_SUBEXPRESSIONS`): the same values, to the bit, as the graph
+    written out, at every point tried, and a smaller graph (what makes the solvers build faster)."""
+    import casadi as ca
+
+    import pamkin.optimize.problem as problem_mod
+
+    pam, data, prob, seed = semimem_problem
+    monkeypatch.setattr(problem_mod, "SHARED_SUBEXPRESSIONS", False)
+    plain = ActuatorProblem(data, prob.cfg, 40, seed, [np.array(prob.cfg.region(5, p.name)) for p in pam.points])
+    fns = [ca.Function("fg", [p.z, p.npar], [ca.vertcat(p.J, p.g)]) for p in (prob, plain)]
+    assert fns[0].n_nodes() < 0.8 * fns[1].n_nodes()
+    rng = np.random.default_rng(3)
+    for n_parallel in (1, 2, 3):
+        points = [p + rng.uniform(-0.03, 0.03, 3) for p in seed]
+        z = prob.initial_guess(points, 0.4 + 0.1 * rng.random(), 0.2 * rng.random())
+        a, b = (np.array(f(z, n_parallel)).ravel() for f in fns)
+        assert np.all(np.isfinite(a)) and np.array_equal(a, b)
+    # and the first-order derivatives IPOPT uses are the same to the bit as well
+    jac = [ca.Function("j", [p.z, p.npar], [ca.jacobian(ca.vertcat(p.J, p.g), p.z)]) for p in (prob, plain)]
+    ja, jb = (np.array(ca.DM(f(z, 2)).full()) for f in jac)
+    assert np.array_equal(ja, jb)
