@@ -13,7 +13,7 @@ from pamkin.design import Design
 def before_after_plot(seed: Design, new: Design, path: Path, n: int = 61, seed_label: str | None = None) -> Path:
     """Human, seed-design and optimised-design torque about each PAM's primary coordinate (others 0).
 
-    ``seed_label`` names the seed's curves in the legend (default: the seed design's name; a warm-started
+    ``seed_label`` names the seed's curves in the legend and title (default: the seed design's name; a warm-started
     run passes the run folder it started from)."""
     import matplotlib  # noqa: PLC0415
 
@@ -30,6 +30,7 @@ def before_after_plot(seed: Design, new: Design, path: Path, n: int = 61, seed_l
     rb, ra = PamRobot(seed, skel, sides=("r",)), PamRobot(new, skel, sides=("r",))
     rom = load_rom(new.rom, "r")
     ids = [p.id for p in new.pams]
+    label = seed_label or seed.name
     cols = 6
     rows = int(np.ceil(len(ids) / cols))
     fig, axes = plt.subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False)
@@ -44,7 +45,7 @@ def before_after_plot(seed: Design, new: Design, path: Path, n: int = 61, seed_l
         idx = [human.muscles.index(m) for m in pam.human_muscles]
         x = np.degrees(q[:, ci])
         ax.plot(x, human.torques(q)[:, idx, ci].sum(1), "k-", lw=2, label="human (Gait2392)")
-        ax.plot(x, rb.evaluate(q).torques[:, k, ci], "C3--", label=seed_label or seed.name)
+        ax.plot(x, rb.evaluate(q).torques[:, k, ci], "C3--", label=label)
         ax.plot(x, ra.evaluate(q).torques[:, k, ci], "C0-", label="optimised")
         title = f"{pid} {pam.name}"
         wrap = len(title) > 30
@@ -53,7 +54,7 @@ def before_after_plot(seed: Design, new: Design, path: Path, n: int = 61, seed_l
         ax.set_ylabel("torque [N·m]", fontsize=8)
         ax.tick_params(labelsize=7)
     axes.ravel()[0].legend(fontsize=7)
-    fig.suptitle(f"Torque about each PAM's primary coordinate: human vs {seed.name} vs optimised", fontsize=12)
+    fig.suptitle(f"Torque about each PAM's primary coordinate: human vs {label} vs optimised", fontsize=12)
     fig.tight_layout()
     import io  # noqa: PLC0415
 

@@ -139,20 +139,28 @@ def test_apply_and_warm_start(tmp_path, monkeypatch):
                      warm_start=str(tmp_path / "run1"))
     import matplotlib.axes
 
-    legends = []
-    real_legend = matplotlib.axes.Axes.legend
+    import matplotlib.figure
+
+    legends, titles = [], []
+    real_legend, real_suptitle = matplotlib.axes.Axes.legend, matplotlib.figure.Figure.suptitle
 
     def legend(ax, *a, **kw):
         legends.append([line.get_label() for line in ax.get_lines()])
         return real_legend(ax, *a, **kw)
 
+    def suptitle(fig, text, *a, **kw):
+        titles.append(text)
+        return real_suptitle(fig, text, *a, **kw)
+
     monkeypatch.setattr(matplotlib.axes.Axes, "legend", legend)
+    monkeypatch.setattr(matplotlib.figure.Figure, "suptitle", suptitle)
     s2 = run(cfg2, tmp_path / "run2")
     assert s2["actuators"][0]["nrmse_after"] <= a1["nrmse_after"] + 1e-3
     for f in ("design.yaml", "summary.json", "log.txt", "before_after.png"):
         assert (tmp_path / "run2" / f).stat().st_size > 0
     # the plot's dashed curves are the warm start's, and the legend says so (not the seed design's name)
     assert legends == [["human (Gait2392)", "warm start (run1)", "optimised"]]
+    assert titles == ["Torque about each PAM's primary coordinate: human vs warm start (run1) vs optimised"]
 
 
 @pytest.mark.parametrize("text,match", [
