@@ -130,7 +130,7 @@ class _MountSolver:
         return sol
 
 
-def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[object, dict]:
+def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam, failing=None) -> tuple[object, dict]:
     """Put the PAM of a solved actuator on one straight segment of its route (module docstring).
 
     Args:
@@ -141,6 +141,9 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
         model: The human model (kinematics of the held-out checks).
         rom: The range of motion of the held-out checks.
         solution_pam: ``(pam, solution) -> Pam`` (the run's saved form of a solution).
+        failing: Optional ``(spanning Pam, mounted Pam) -> str | None``: a reason to mount the PAM although
+            the fit cost exceeds ``mount_cost`` (``cfg.mount_failing``: its fit already fails the audit's fit
+            limits, so no fit count is at stake), or None.
 
     Returns:
         ``(solution, info)``: the mounted solution, or ``best`` unchanged, and a dict with ``mounted``,
@@ -219,7 +222,10 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
     cost = float(np.sqrt(max(sol.objective, 0.0)) - np.sqrt(max(j_before, 0.0)))
     info.update(segment=names[j], segment_index=j, objective_after=float(sol.objective), rest_after_m=float(sol.rest_length),
                 tendon_after_m=float(max(sol.tendon_length, 0.0)), cost=cost)
-    if cost > cfg.mount_cost:
+    accepted = None
+    if cost > cfg.mount_cost and failing is not None:
+        accepted = failing(solution_pam(pam, prob.finalize(best)), solution_pam(pam, prob.finalize(sol)))
+    if cost > cfg.mount_cost and accepted is None:
         info.update(reason="fit cost",
                     line=f"on one straight segment ({names[j]}, resting length {best.rest_length:.3f} -> "
                          f"{sol.rest_length:.3f} m) its fit would get worse: objective {j_before:.4g} -> "
@@ -228,7 +234,10 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam) -> tuple[ob
     info.update(mounted=True, reason="",
                 line=f"on one straight segment {names[j]}: resting length {best.rest_length:.3f} -> "
                      f"{sol.rest_length:.3f} m, tendon {max(best.tendon_length, 0.0):.3f} -> "
-                     f"{max(sol.tendon_length, 0.0):.3f} m, objective {j_before:.4g} -> {sol.objective:.4g}")
+                     f"{max(sol.tendon_length, 0.0):.3f} m, objective {j_before:.4g} -> {sol.objective:.4g}"
+                     + (f" (root +{cost:.3f} > mount_cost {cfg.mount_cost:g}, accepted: {accepted})" if accepted else ""))
+    if accepted:
+        info["failing_fit"] = accepted
     return sol, info
 
 

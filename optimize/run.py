@@ -430,7 +430,8 @@ def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None, blocks: bool = True)
         return best, prob, {}, None
     from .mount import BLOCK_REASONS, mount_block, mount_rounds, mount_stage  # noqa: PLC0415
 
-    best, info = mount_stage(prob, best, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam)
+    failing = _failing_fit(list(prob.data.crossed or [])) if cfg.mount_failing else None
+    best, info = mount_stage(prob, best, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam, failing)
     if not info.get("mounted") and cuts is not None:
         best, prob, info = mount_rounds(prob, best, info, pam, cfg, cuts, _STATE["human"], _STATE["rom"],
                                         solution_pam)
@@ -712,6 +713,10 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
     pams = [seed_design.pam(i) for i in ids]
     data = [actuator_data(p, human, rom, cfg, seed_design.fitting_length_m) for p in pams]
     _STATE.update(cfg=cfg, data=data, human=human, rom=rom, validation=None, seed_design=seed_design)
+    if cfg.mount and cfg.mount_failing:
+        # the human torques of the validation poses here, before the workers fork: a forked worker that
+        # computes them itself hangs in the threads the parent process already started
+        _validation_set()
     if cfg.bone_mesh:
         from pamkin.bones import BoneSet  # noqa: PLC0415
 
@@ -880,11 +885,9 @@ def block_tasks(results: list[ActuatorResult], cfg: RunConfig, total_mass: float
     return tasks
 
 
-def _validation():
-    """``error(result, k)``: the validation error (:mod:`optimize.validation`: primary NRMSE + worst error about
-    a crossed coordinate, on poses like the audit's from the optimiser's own stream) of actuator ``k``'s
-    result; the poses and human torques are made once per run."""
-    from .validation import validation_error, validation_poses  # noqa: PLC0415
+def _validation_set() -> tuple[np.ndarray, np.ndarray]:
+    """The validation poses and the human torques there (:mod:`optimize.validation`), made once per process."""
+    from .validation import validation_poses  # noqa: PLC0415
 
     if _STATE.get("validation") is None:
         human = _STATE["human"]
@@ -892,7 +895,16 @@ def _validation():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RangeWarning)
             _STATE["validation"] = (q, human.torques(q))
-    q, T = _STATE["validation"]
+    return _STATE["validation"]
+
+
+def _validation():
+    """``error(result, k)``: the validation error (:mod:`optimize.validation`: primary NRMSE + worst error about
+    a crossed coordinate, on poses like the audit's from the optimiser's own stream) of actuator ``k``'s
+    result; the poses and human torques are made once per run."""
+    from .validation import validation_error  # noqa: PLC0415
+
+    q, T = _validation_set()
 
     def error(r: ActuatorResult, k: int) -> float:
         data = _STATE["data"][k]
@@ -901,6 +913,30 @@ def _validation():
                                           _STATE["seed_design"])))
 
     return error
+
+
+def _failing_fit(crossed: list[str]):
+    """``(spanning, mounted) -> reason | None`` for :func:`optimize.mount.mount_stage` (``mount_failing``): a
+    reason when the spanning PAM's fit fails both of the audit's fit limits (primary NRMSE and worst error about
+    a crossed coordinate, :mod:`optimize.validation`, on the optimiser's own validation poses; thresholds from
+    the audit's limits file), so that mounting it at a fit cost changes neither count; else None."""
+    from pamkin.audit import load_limits  # noqa: PLC0415
+
+    from .validation import validation_error  # noqa: PLC0415
+
+    thr = load_limits()["thresholds"]
+    q, T = _validation_set()
+
+    def reason(spanning: Pam, mounted: Pam) -> str | None:
+        nr0, w0 = validation_error(spanning, _STATE["human"], q, T, crossed, _STATE["seed_design"])
+        if not (nr0 > thr["nrmse_good"] and w0 > thr["worst_coordinate_error_good"]):
+            return None
+        nr1, w1 = validation_error(mounted, _STATE["human"], q, T, crossed, _STATE["seed_design"])
+        return (f"its fit fails both audit fit limits already (validation NRMSE {nr0:.3f} > "
+                f"{thr['nrmse_good']:g}, worst {w0:.3f} > {thr['worst_coordinate_error_good']:g}; on one segment "
+                f"{nr1:.3f}, {w1:.3f})")
+
+    return reason
 
 
 def _unit_mass(p: Pam) -> float:

@@ -853,6 +853,21 @@ def test_mount_stage_puts_the_pam_on_one_segment_of_the_fixed_route():
     if info["cost"] > 0:
         assert not refused["mounted"] and refused["reason"] == "fit cost" and kept is sol
         assert "mount_cost 0" in refused["line"]
+        # mount_failing: the same PAM goes on one segment at that cost where the run says its fit fails anyway
+        seen = []
+
+        def failing(before, after):
+            seen.append((before, after))
+            return "its fit fails both audit fit limits already (test)"
+
+        strict = RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 0.0})
+        again, accepted = mount_stage(prob, sol, seed, strict, model, rom, run_mod.solution_pam, failing)
+        assert accepted["mounted"] and accepted["failing_fit"].endswith("(test)")
+        assert "accepted: its fit fails both audit fit limits already (test)" in accepted["line"]
+        assert np.allclose(np.array(again.points), np.array(mounted.points))
+        assert seen[0][0] == spanning and seen[0][1].resting_length_m < spanning.resting_length_m
+        kept2, refused2 = mount_stage(prob, sol, seed, strict, model, rom, run_mod.solution_pam, lambda a, b: None)
+        assert not refused2["mounted"] and refused2["reason"] == "fit cost" and kept2 is sol
 
 
 def test_a_mounted_pam_is_recognised_and_keeps_its_segment():
@@ -1255,3 +1270,34 @@ def test_shared_subexpressions_keep_every_value(semimem_problem, monkeypatch):
     jac = [ca.Function("j", [p.z, p.npar], [ca.jacobian(ca.vertcat(p.J, p.g), p.z)]) for p in (prob, plain)]
     ja, jb = (np.array(ca.DM(f(z, 2)).full()) for f in jac)
     assert np.array_equal(ja, jb)
+
+
+@pytest.mark.parametrize("errors,accepted", [((0.20, 0.30), True), ((0.20, 0.20), False), ((0.10, 0.30), False),
+                                             ((0.15, 0.26), False)])
+def test_failing_fit_needs_both_audit_fit_limits_failed(monkeypatch, errors, accepted):
+    """``mount_failing``: a fit cost is accepted only where the spanning PAM's validation NRMSE and worst error
+    both exceed the audit's limits (robot/data/audit_limits.yaml: 0.15 and 0.25), so that mounting it changes
+    neither of the audit's fit counts."""
+    import pamkin.optimize.validation as validation
+    from pamkin.audit import load_limits
+
+    thr = load_limits()["thresholds"]
+    assert (thr["nrmse_good"], thr["worst_coordinate_error_good"]) == (0.15, 0.25)
+    calls = []
+
+    def fake(pam, *a, **kw):
+        calls.append(pam)
+        return errors if pam == "spanning" else (0.9, 1.9)
+
+    monkeypatch.setattr(validation, "validation_error", fake)
+    monkeypatch.setitem(run_mod._STATE, "validation", (np.zeros((1, 1)), np.zeros((1, 1, 1))))
+    monkeypatch.setitem(run_mod._STATE, "human", None)
+    monkeypatch.setitem(run_mod._STATE, "seed_design", None)
+    reason = run_mod._failing_fit(["knee_angle_r"])("spanning", "mounted")
+    assert (reason is not None) == accepted
+    if accepted:
+        assert reason.startswith("its fit fails both audit fit limits already (validation NRMSE 0.200 > 0.15, "
+                                 "worst 0.300 > 0.25; on one segment 0.900, 1.900)")
+        assert calls == ["spanning", "mounted"]
+    else:
+        assert calls == ["spanning"]
