@@ -255,10 +255,7 @@ class ActuatorProblem:
             fam += [f"{pts[i].name} on its bone ({1e3 * BRACKET_BAND[0]:g}..{1e3 * BRACKET_BAND[1]:g} mm out, "
                     f"bone distance spline)"]
             capsule_rows.append(len(fam) - 1)
-        # one node per distinct subexpression (ca.cse): the objective and rows keep their values to the bit, the
-        # graph shrinks by about 40 %, so the solvers build their exact Hessians about twice as fast and every
-        # evaluation is cheaper (the Hessian's round-off differs: IPOPT's path may differ in the last digits)
-        if SHARED_SUBEXPRESSIONS:
+        if SHARED_SUBEXPRESSIONS:          # one node per distinct subexpression (see the constant)
             fg = ca.cse(ca.vertcat(self.J, *g))
             self.J, self.g = fg[0], fg[1:]
         else:
