@@ -430,7 +430,8 @@ def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None, blocks: bool = True)
         return best, prob, {}, None
     from .mount import BLOCK_REASONS, mount_block, mount_rounds, mount_stage  # noqa: PLC0415
 
-    failing = _failing_fit(list(prob.data.crossed or [])) if cfg.mount_failing else None
+    # made only where a fit cost is weighed (the validation errors of this actuator's crossed coordinates)
+    failing = (lambda a, b: _failing_fit(list(prob.data.crossed or []))(a, b)) if cfg.mount_failing else None
     best, info = mount_stage(prob, best, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam, failing)
     if not info.get("mounted") and cuts is not None:
         best, prob, info = mount_rounds(prob, best, info, pam, cfg, cuts, _STATE["human"], _STATE["rom"],
