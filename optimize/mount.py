@@ -105,7 +105,7 @@ class _MountSolver:
         self.n_rows = rows.shape[0]
         x = ca.SX.sym("lt", 2)
         z = ca.vertcat(ca.DM(np.asarray(z_route[:-2], float)), x)
-        J, g, r = ca.Function("all", [prob.z, prob.npar], [prob.J, prob.g, rows])(z, n_parallel)
+        J, g, r = ca.Function("all", [prob.z, prob.npar], [*prob.shared(), rows])(z, n_parallel)
         self.z_route = np.asarray(z_route, float)
         self.solver = ca.nlpsol("mount", "ipopt", {"x": x, "f": J, "g": ca.vertcat(g, r)}, prob._ipopt_options())
         self.g = ca.Function("rows", [x], [r])

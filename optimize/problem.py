@@ -64,9 +64,11 @@ class Solution:
 CUT_PENALTY = 3000.0
 #: Rows of the bone-mesh solver (unused rows are inactive): as many as optimize.bone_cuts.MAX_CUTS.
 CUT_SLOTS = 320
-#: Build the objective and rows with each distinct subexpression once (``casadi.cse``): the same values to
-#: the bit and first derivatives too, about 40 % fewer graph nodes, so the exact-Hessian solvers build about
-#: twice as fast and evaluate faster; the Hessian's round-off differs (tests/test_optimize.py).
+#: Give the solvers the objective and rows with each distinct subexpression once (``casadi.cse``): the same
+#: values to the bit and first derivatives too, about 40 % fewer graph nodes, so the exact-Hessian solvers
+#: build about twice as fast and evaluate faster; the Hessian's round-off differs (tests/test_optimize.py).
+#: Made when a problem's first solver is built (:meth:`ActuatorProblem.shared`): ~0.27 s a problem, and
+#: many problems are only evaluated (a warm start's given routes).
 SHARED_SUBEXPRESSIONS = True
 #: The balls' slack is a squared length [m²]: scaled so that 1 mm outside an 18 mm ball costs ~1 mm of a row.
 BALL_PENALTY_SCALE = 40.0
@@ -255,11 +257,9 @@ class ActuatorProblem:
             fam += [f"{pts[i].name} on its bone ({1e3 * BRACKET_BAND[0]:g}..{1e3 * BRACKET_BAND[1]:g} mm out, "
                     f"bone distance spline)"]
             capsule_rows.append(len(fam) - 1)
-        if SHARED_SUBEXPRESSIONS:          # one node per distinct subexpression (see the constant)
-            fg = ca.cse(ca.vertcat(self.J, *g))
-            self.J, self.g = fg[0], fg[1:]
-        else:
-            self.g = ca.vertcat(*g)
+        self.g = ca.vertcat(*g)
+        self._shared: tuple | None = None     # (J, g) for the solvers, made when the first one is built
+        self._eval_fn = None                  # (J, g, torques) at a decision vector, made on first use
         self.lbg, self.ubg, self.family = np.array(lbg), np.array(ubg), fam
         self._capsule_mask = np.zeros(len(fam), dtype=bool)
         self._capsule_mask[capsule_rows] = True
@@ -325,10 +325,29 @@ class ActuatorProblem:
         tendon = float(np.clip(tendon, self.lbx[-1], self.ubx[-1]))
         return np.array(z + [rest, tendon])
 
+    def shared(self) -> tuple:
+        """(objective, rows) as the solvers get them: with each distinct subexpression once
+        (:data:`SHARED_SUBEXPRESSIONS`; made once, on first use), else :attr:`J` and :attr:`g` themselves."""
+        if self._shared is None:
+            if SHARED_SUBEXPRESSIONS:
+                fg = ca.cse(ca.vertcat(self.J, self.g))
+                self._shared = (fg[0], fg[1:])
+            else:
+                self._shared = (self.J, self.g)
+        return self._shared
+
+    def _values(self, z: np.ndarray, n_parallel: int) -> list[np.ndarray]:
+        """[objective, rows, torques of every :attr:`torque` label] at ``z`` (one function, made once)."""
+        if self._eval_fn is None:
+            J, g = self._shared if self._shared is not None else (self.J, self.g)
+            self._eval_fn = ca.Function("values", [self.z, self.npar], [J, g, *(tr for tr, _, _ in self.torque.values())])
+        return [np.array(v).ravel() for v in self._eval_fn(z, n_parallel)]
+
     def solver(self):
         """The IPOPT solver (built once; CasADi derives exact Hessians of the SX expressions)."""
         if self._solver is None:
-            nlp = {"x": self.z, "p": self.npar, "f": self.J, "g": self.g}
+            J, g = self.shared()
+            nlp = {"x": self.z, "p": self.npar, "f": J, "g": g}
             self._solver = ca.nlpsol("pam", "ipopt", nlp, self._ipopt_options())
         return self._solver
 
@@ -368,9 +387,10 @@ class ActuatorProblem:
             c = ca.SX.sym("c", 3 * npt)
             r2 = ca.SX.sym("r2", npt)
             ball = [r2[i] - ca.sumsqr(self.z[3 * i:3 * i + 3] - c[3 * i:3 * i + 3]) for i in range(npt)]
-            g = ca.vertcat(self.g, ca.mtimes(W, self.z) + w0 + s[:k], ca.vertcat(*ball) + s[k:])
+            J, g0 = self.shared()
+            g = ca.vertcat(g0, ca.mtimes(W, self.z) + w0 + s[:k], ca.vertcat(*ball) + s[k:])
             nlp = {"x": ca.vertcat(self.z, s), "p": ca.vertcat(self.npar, ca.vec(W), w0, c, r2),
-                   "f": self.J + CUT_PENALTY * ca.sum1(s[:k]) + CUT_PENALTY * BALL_PENALTY_SCALE * ca.sum1(s[k:]),
+                   "f": J + CUT_PENALTY * ca.sum1(s[:k]) + CUT_PENALTY * BALL_PENALTY_SCALE * ca.sum1(s[k:]),
                    "g": g}
             self._cut_solvers[k] = ca.nlpsol("pam_cuts", "ipopt", nlp, self._ipopt_options())
         return self._cut_solvers[k]
@@ -419,14 +439,14 @@ class ActuatorProblem:
         x = np.array(res["x"]).ravel()
         z = x[:nz]
         slack = float(np.max(x[nz:nz + k], initial=0.0))
-        f = float(ca.Function("J", [self.z, self.npar], [self.J])(z, n_parallel))
+        f = float(self._values(z, n_parallel)[0][0])
         sol = self._solution(z, f, stats.get("return_status", "?"), bool(stats.get("success")),
                              time.perf_counter() - t0, n_parallel, skip_capsules=True)
         return sol, slack
 
     def evaluate(self, z: np.ndarray, n_parallel: int = 1) -> Solution:
         """The solution at a given decision vector (checked against the meshes, not the capsules)."""
-        f = float(ca.Function("J", [self.z, self.npar], [self.J])(z, n_parallel))
+        f = float(self._values(z, n_parallel)[0][0])
         return self._solution(np.asarray(z, float), f, "given", True, 0.0, n_parallel, skip_capsules=True)
 
     def _capsule_rows(self) -> np.ndarray:
@@ -440,7 +460,7 @@ class ActuatorProblem:
         # (the points may leave their boxes in the bone-mesh rounds' trust regions: not clipped)
         z = np.array(z, float)
         z[-2:] = np.minimum(np.maximum(z[-2:], self.lbx[-2:]), self.ubx[-2:])
-        gval = np.array(ca.Function("g", [self.z, self.npar], [self.g])(z, n_parallel)).ravel()
+        _, gval, *tvals = self._values(z, n_parallel)
         viol = np.maximum(self.lbg - gval, 0) + np.maximum(gval - self.ubg, 0)
         if skip_capsules:         # bone-mesh rounds: the exact meshes replace the capsules
             viol = np.where(self._capsule_rows(), 0.0, viol)
@@ -451,8 +471,7 @@ class ActuatorProblem:
         for k, i in enumerate(self.free):
             pts[i] = z[3 * k:3 * k + 3].copy()
         nrmse, torques = {}, {}
-        for label, (tr, th, peak) in self.torque.items():
-            val = np.array(ca.Function("t", [self.z, self.npar], [tr])(z, n_parallel)).ravel()
+        for val, (label, (_, th, peak)) in zip(tvals, self.torque.items()):
             torques[label] = val
             nrmse[label] = float(np.sqrt(np.mean((val - th) ** 2)) / peak) if peak > 0 else float("nan")
         if skip_capsules:

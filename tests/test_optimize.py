@@ -1256,9 +1256,12 @@ def test_shared_subexpressions_keep_every_value(semimem_problem, monkeypatch):
     import pamkin.optimize.problem as problem_mod
 
     pam, data, prob, seed = semimem_problem
+    prob.shared()                          # made with the constant on
     monkeypatch.setattr(problem_mod, "SHARED_SUBEXPRESSIONS", False)
     plain = ActuatorProblem(data, prob.cfg, 40, seed, [np.array(prob.cfg.region(5, p.name)) for p in pam.points])
-    fns = [ca.Function("fg", [p.z, p.npar], [ca.vertcat(p.J, p.g)]) for p in (prob, plain)]
+    # the solvers' graph (made on first use) against the plain one; and what the run evaluates
+    assert all(x is y for x, y in zip(plain.shared(), (plain.J, plain.g)))
+    fns = [ca.Function("fg", [p.z, p.npar], [ca.vertcat(*p.shared())]) for p in (prob, plain)]
     assert fns[0].n_nodes() < 0.8 * fns[1].n_nodes()
     rng = np.random.default_rng(3)
     for n_parallel in (1, 2, 3):
@@ -1267,9 +1270,18 @@ def test_shared_subexpressions_keep_every_value(semimem_problem, monkeypatch):
         a, b = (np.array(f(z, n_parallel)).ravel() for f in fns)
         assert np.all(np.isfinite(a)) and np.array_equal(a, b)
     # and the first-order derivatives IPOPT uses are the same to the bit as well
-    jac = [ca.Function("j", [p.z, p.npar], [ca.jacobian(ca.vertcat(p.J, p.g), p.z)]) for p in (prob, plain)]
+    jac = [ca.Function("j", [p.z, p.npar], [ca.jacobian(ca.vertcat(*p.shared()), p.z)]) for p in (prob, plain)]
     ja, jb = (np.array(ca.DM(f(z, 2)).full()) for f in jac)
     assert np.array_equal(ja, jb)
+    # the run's evaluations (one cached function, on whichever graph exists) give the same solution
+    fresh = ActuatorProblem(data, prob.cfg, 40, seed, [np.array(prob.cfg.region(5, p.name)) for p in pam.points])
+    for p in (prob, fresh):
+        s = p.evaluate(z, 2)
+        assert s.objective == float(np.array(fns[0](z, 2)).ravel()[0])
+        ref = prob.evaluate(z, 2)
+        assert s.torque_samples.keys() == ref.torque_samples.keys() and s.violations == ref.violations
+        assert all(np.array_equal(s.torque_samples[k], ref.torque_samples[k]) for k in s.torque_samples)
+    assert fresh._shared is None           # evaluating alone makes no shared graph
 
 
 @pytest.mark.parametrize("errors,accepted", [((0.20, 0.30), True), ((0.20, 0.20), False), ((0.10, 0.30), False),
