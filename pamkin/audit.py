@@ -11,6 +11,8 @@ For one design (right side; the left mirrored) the audit measures:
    muscles cross, against the summed torque of the human muscles it replaces (Gait2392, full
    activation, static equilibrium), RMS error ÷ the human peak about the primary coordinate;
    the worst coordinate is named. Dead-zone fraction (strain outside −pretension … kmax) per set.
+   The force scale that would fit the primary torque best and the error there
+   (:func:`best_force_scale`): whether a miss is the PAM's force level or its torque's shape.
 3. **Real bone geometry** — the model's bone meshes (:class:`pamkin.bones.BoneSet`): per fixed
    attachment point the signed distance to its own body's bone (the bracket it needs; negative
    inside) and the deepest it gets into any bone at any pose; per route segment the deepest
@@ -251,16 +253,32 @@ def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x)))) if x.size else float("nan")
 
 
+def best_force_scale(th: np.ndarray, tr: np.ndarray) -> tuple[float, float]:
+    """The factor s the robot torques ``tr`` (S,) [N·m] would need to fit the human's ``th`` (S,) best (least
+    squares: s = Σ tr·th / Σ tr²) and the RMS error [N·m] there: how far a PAM's miss is its force level (a
+    larger or smaller PAM, more PAMs, another pressure) rather than the shape of its torque over the poses.
+    A PAM with no torque: (nan, RMS of ``th``)."""
+    tt = float(np.dot(tr, tr))
+    if not tt > 0:
+        return float("nan"), _rms(th)
+    s = float(np.dot(tr, th)) / tt
+    return s, _rms(s * tr - th)
+
+
 def torque_metrics(th: np.ndarray, tr: np.ndarray, prim: int, coords: list[int], names: list[str]) -> dict:
     """The audit's torque numbers of one PAM: human ``th`` and robot ``tr`` torques (S, n_coordinates) [N·m];
     ``nrmse`` = RMS error about the primary coordinate ``prim`` ÷ the human peak about it, and per
     coordinate of ``coords`` (indices into ``names``) the same ratio (``coordinate_errors``), the worst of them
-    (``worst_coordinate``, ``worst_coordinate_error``) and the peaks. Where the human has no torque about
+    (``worst_coordinate``, ``worst_coordinate_error``), the peaks, and the force scale that would fit the primary
+    coordinate best with the NRMSE there (``best_force_scale``, ``nrmse_at_best_scale``, :func:`best_force_scale`).
+    Where the human has no torque about
     ``prim`` on these samples the ratios are undefined (nan; the audit's summary counts them as failing)."""
     peak = float(np.max(np.abs(th[:, prim]))) if len(th) else 0.0
     err = {names[c]: _rms(tr[:, c] - th[:, c]) / peak if peak > 0 else float("nan") for c in coords}
     worst = max(err, key=lambda c: (err[c] if np.isfinite(err[c]) else -1)) if err else ""
+    scale, scaled = best_force_scale(th[:, prim], tr[:, prim])
     return {"nrmse": err.get(names[prim], float("nan")), "human_peak_Nm": peak,
+            "best_force_scale": scale, "nrmse_at_best_scale": scaled / peak if peak > 0 else float("nan"),
             "robot_peak_Nm": float(np.max(np.abs(tr[:, prim]))) if len(tr) else 0.0,
             "coordinate_errors": err, "worst_coordinate": worst, "worst_coordinate_error": err.get(worst, float("nan")),
             "worst_robot_Nm": float(np.max(np.abs(tr[:, names.index(worst)]))) if worst else 0.0,
@@ -347,6 +365,8 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
             row[f"{key}_robot_peak_Nm"] = m["robot_peak_Nm"]
             row[f"{key}_worst_robot_peak_Nm"] = m["worst_robot_Nm"]
             row[f"{key}_worst_human_peak_Nm"] = m["worst_human_Nm"]
+            row[f"{key}_best_force_scale"] = m["best_force_scale"]
+            row[f"{key}_nrmse_at_best_scale"] = m["nrmse_at_best_scale"]
             row[f"{key}_dead_zone_fraction"] = float(np.mean(~st.in_range[:, k]))
         if "gait" in pam_state:   # the left PAM on the left leg's gait
             row["gait_dead_zone_fraction_left"] = float(np.mean(~pam_state["gait"].in_range[:, k + n]))
@@ -730,5 +750,5 @@ def _gait_fraction(des: Design, thr: dict, ik: str) -> tuple[float, dict[str, fl
     return float(plan.feasible_frame_fraction), {name: float(f) for f, name in limiting}
 
 
-__all__ = ["AUDIT_STREAM", "AuditOptions", "AuditResult", "audit_design", "audit_coordinates", "gait_poses",
+__all__ = ["AUDIT_STREAM", "AuditOptions", "AuditResult", "audit_design", "audit_coordinates", "best_force_scale", "gait_poses",
            "load_limits", "random_poses", "torque_metrics"]

@@ -82,6 +82,7 @@ def scorecard_text(res) -> str:
               f"max bracket {_fmt(1000 * sm['max_bracket_m'])} mm, max force ratio {_fmt(sm['max_force_ratio'])}, "
               f"total PAM length {_fmt(sm['total_pam_length_m'])} m, air {_fmt(sm['air_volume_l'])} l, "
               f"mass {_fmt(sm['mass_kg'])} kg (assumed Festo weights)",
+              *force_level_lines(res.pams, thr["nrmse_good"]),
               *(["pam_at not possible (the route on that side of the mount segment changes length, or the PAM is "
                  "not on one segment), ignored: " + ", ".join(
                      f"{r['id']} {r['name']} ({r['pam_at_not_possible']})" for r in res.pams if r.get("pam_at_not_possible"))]
@@ -95,6 +96,21 @@ def scorecard_text(res) -> str:
               + (f" ({', '.join(res.failed)})" if res.failed else ""),
               f"({res.seconds:.0f} s)"]
     return "\n".join(lines) + "\n"
+
+
+def force_level_lines(rows: list[dict], limit: float) -> list[str]:
+    """The scorecard's line on the PAMs over the NRMSE ``limit``: the force scale that would fit each best
+    (``random_best_force_scale``) and the NRMSE there — a miss that passes there is the PAM's force level (size,
+    count, pressure), one that does not is the shape of its torque over the poses (route, force-length).
+    Empty where none is over the limit (or the audit predates these numbers)."""
+    over = [r for r in rows if not (r["random_nrmse"] <= limit) and r.get("random_best_force_scale") is not None]
+    if not over:
+        return []
+    level = [r for r in over if r["random_nrmse_at_best_scale"] <= limit]
+    return [f"force level of the {len(over)} PAMs over the NRMSE limit (torque x s fits best; NRMSE at s): "
+            + ", ".join(f"{r['id']} {r['name']} x{_fmt(r['random_best_force_scale'])} ({_fmt(r['random_nrmse_at_best_scale'])})"
+                        for r in over)
+            + f"; within {limit:g} at s: {len(level)}" + (" (" + ", ".join(str(r["id"]) for r in level) + ")" if level else "")]
 
 
 def side_by_side(results: list, labels: list[str]) -> str:

@@ -374,6 +374,45 @@ def test_off_axis_torque_of_a_two_point_pam_by_hand(skel):
     expected = np.sqrt(np.mean((F * r) ** 2)) / peak
     assert row["random_coordinate_errors"]["lumbar_extension"] == pytest.approx(expected, rel=1e-6)
     assert row["random_coordinate_errors"]["lumbar_extension"] > 0.1
+    # the best force scale can only lower the primary error (least squares over s, s = 1 included)
+    assert row["random_nrmse_at_best_scale"] <= row["random_nrmse"] and row["random_best_force_scale"] > 0
+
+
+def test_best_force_scale_by_hand():
+    """The force scale that fits best and the error there, by hand: a robot torque half the human's needs x2 and
+    then fits exactly; an added component orthogonal to the human's is what remains; no robot torque: no scale."""
+    from pamkin.audit import best_force_scale, torque_metrics
+
+    th = np.array([1.0, -2.0, 3.0, 0.5])
+    assert best_force_scale(th, 0.5 * th) == pytest.approx((2.0, 0.0), abs=1e-12)
+    o = np.array([2.0, 1.0, 0.0, 0.0])                 # o . th = 0
+    s, e = best_force_scale(th, 0.5 * th + o)
+    expected = (0.5 * th @ th) / (0.25 * th @ th + o @ o)
+    assert s == pytest.approx(expected, rel=1e-12)
+    assert e == pytest.approx(np.sqrt(np.mean((s * (0.5 * th + o) - th) ** 2)), rel=1e-12)
+    s0, e0 = best_force_scale(th, np.zeros(4))
+    assert np.isnan(s0) and e0 == pytest.approx(np.sqrt(np.mean(th ** 2)))
+    m = torque_metrics(np.stack([th, th], 1), np.stack([0.5 * th, th], 1), 0, [0, 1], ["a", "b"])
+    assert m["best_force_scale"] == pytest.approx(2.0) and m["nrmse_at_best_scale"] == pytest.approx(0.0, abs=1e-12)
+    assert m["nrmse"] == pytest.approx(np.sqrt(np.mean((0.5 * th) ** 2)) / 3.0)
+
+
+def test_force_level_line_names_the_misses():
+    """The scorecard says which NRMSE misses would pass at their best force scale (force level) and which
+    would not (shape); nothing where no PAM misses, or where an old audit.json has no scale."""
+    from pamkin.audit_report import force_level_lines
+
+    rows = [{"id": 4, "name": "Biceps", "random_nrmse": 0.43, "random_best_force_scale": 3.91,
+             "random_nrmse_at_best_scale": 0.12},
+            {"id": 9, "name": "Gracilis", "random_nrmse": 0.37, "random_best_force_scale": 1.36,
+             "random_nrmse_at_best_scale": 0.32},
+            {"id": 10, "name": "Short head", "random_nrmse": 0.06, "random_best_force_scale": 1.0,
+             "random_nrmse_at_best_scale": 0.05}]
+    (line,) = force_level_lines(rows, 0.15)
+    assert "2 PAMs over the NRMSE limit" in line and "4 Biceps x3.91 (0.12)" in line and "9 Gracilis x1.36 (0.32)" in line
+    assert line.endswith("within 0.15 at s: 1 (4)") and "Short head" not in line
+    assert force_level_lines(rows[2:], 0.15) == []
+    assert force_level_lines([{k: v for k, v in rows[0].items() if "scale" not in k}], 0.15) == []
 
 
 def test_undefined_error_fails_and_is_strict_json():
