@@ -103,10 +103,13 @@ def force_level_lines(rows: list[dict], limit: float) -> list[str]:
     (``random_best_force_scale``) and the NRMSE there — a miss that passes there is the PAM's force level (size,
     count, pressure), one that does not is the shape of its torque over the poses (route, force-length).
     Empty where none is over the limit (or the audit predates these numbers)."""
-    over = [r for r in rows if not (r["random_nrmse"] <= limit) and r.get("random_best_force_scale") is not None]
+    def num(v) -> float:               # audit.json writes an undefined number as null
+        return float("nan") if v is None else float(v)
+
+    over = [r for r in rows if not num(r.get("random_nrmse")) <= limit and "random_best_force_scale" in r]
     if not over:
         return []
-    level = [r for r in over if r["random_nrmse_at_best_scale"] <= limit]
+    level = [r for r in over if num(r.get("random_nrmse_at_best_scale")) <= limit]
     return [f"force level of the {len(over)} PAMs over the NRMSE limit (torque x s fits best; NRMSE at s): "
             + ", ".join(f"{r['id']} {r['name']} x{_fmt(r['random_best_force_scale'])} ({_fmt(r['random_nrmse_at_best_scale'])})"
                         for r in over)

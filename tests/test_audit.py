@@ -412,6 +412,11 @@ def test_force_level_line_names_the_misses():
     assert "2 PAMs over the NRMSE limit" in line and "4 Biceps x3.91 (0.12)" in line and "9 Gracilis x1.36 (0.32)" in line
     assert line.endswith("within 0.15 at s: 1 (4)") and "Short head" not in line
     assert force_level_lines(rows[2:], 0.15) == []
+    # as read back from audit.json: an undefined NRMSE (no human torque) is null and counts as over the limit
+    undefined = {"id": 7, "name": "None", "random_nrmse": None, "random_best_force_scale": None,
+                 "random_nrmse_at_best_scale": None}
+    (line,) = force_level_lines([undefined], 0.15)
+    assert "7 None x- (-)" in line and line.endswith("within 0.15 at s: 0")
     assert force_level_lines([{k: v for k, v in rows[0].items() if "scale" not in k}], 0.15) == []
 
 
