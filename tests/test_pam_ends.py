@@ -44,7 +44,8 @@ def _pairs(des: Design) -> int:
                         segment_step_m=0.05)
     res = audit_design(des, options=opts)
     assert all(r["on_one_segment"] and r["mount_segment"] == "a->b" for r in res.pams)
-    rows = {int(line.split()[0]): line for line in scorecard_text(res).splitlines() if " toy " in line}
+    rows = {int(line.split()[0]): line for line in scorecard_text(res).splitlines()
+            if " toy " in line and line.split()[0].isdigit()}     # the PAM table's rows
     for r in res.pams:                    # the scorecard's 1seg column names the end
         assert f" yes/{r['pam_at'][0]} " in rows[r["id"]]
     return res.summary["pam_pairs_intersecting"], [r["pam_at"] for r in res.pams]
