@@ -68,6 +68,12 @@ _STATE: dict = {}
 #: Leave out diameter / parallel-count tries whose mass penalty alone scores more than a feasible try with at
 #: most as many PAMs (they could never be chosen, by the actuator or by the unit budget).
 PRUNE_DOMINATED = True
+#: A diameter whose solve from the seed route stopped at IPOPT's CPU-time or iteration cap is solved once more
+#: from the best feasible diameter's fit (its route, resting and tendon length): IPOPT from the seed may not
+#: converge in time where that fit is a good start (peroneus brevis at 20 mm in the default run).
+RETRY_CAPPED = True
+#: IPOPT statuses of a solve stopped by a cap rather than by what it found.
+CAPPED_STATUSES = frozenset({"Maximum_CpuTime_Exceeded", "Maximum_Iterations_Exceeded"})
 
 
 def _route_box(pam: Pam, cfg: RunConfig) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -196,6 +202,14 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
             for d in cfg.diameters_mm:
                 results[(d, 1)] = attempt(d, 1, seed, None, None, "seed", relaxed)
         feasible = {key: s for key, s in results.items() if s.success}
+        if feasible and RETRY_CAPPED:
+            start = feasible[min(feasible, key=lambda key: score(feasible[key]))]
+            for key, s in list(results.items()):
+                if not s.success and s.status in CAPPED_STATUSES and not dominated(*key):
+                    results[key] = attempt(*key, start.points, start.rest_length, start.tendon_length,
+                                           f"{start.diameter_mm} mm fit (the seed start stopped at a cap)", relaxed)
+                    if results[key].success:
+                        feasible[key] = results[key]
         if feasible:
             d_best = min(feasible, key=lambda key: score(feasible[key]))[0]
             prev = feasible[(d_best, 1)]

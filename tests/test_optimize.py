@@ -742,6 +742,50 @@ def test_dominated_tries_are_left_out_and_change_nothing(monkeypatch):
     assert np.allclose([p.location for p in pruned.pam.points], [p.location for p in full.pam.points], rtol=0, atol=1e-9)
 
 
+@pytest.mark.parametrize("status,retried", [("Maximum_CpuTime_Exceeded", True), ("Maximum_Iterations_Exceeded", True),
+                                             ("Infeasible_Problem_Detected", False)])
+def test_a_diameter_stopped_at_a_cap_is_solved_again_from_the_feasible_fit(monkeypatch, status, retried):
+    """A diameter whose solve from the seed route stops at IPOPT's CPU-time or iteration cap is solved once more
+    from the best feasible diameter's fit (route, resting and tendon length), and can then be chosen; a solve
+    that ended for what it found (here: local infeasibility) is not retried, nor is anything with the retry off.
+    The cap is simulated on the 20 mm solve from the seed (the solver's own answer, its status replaced)."""
+    import io
+
+    from pamkin.optimize.problem import ActuatorProblem
+
+    design = load_design()
+    pam = design.pam(17)
+    real = ActuatorProblem.solve
+    seed = np.array([p.location for p in pam.points], float)
+
+    def solve(self, z0, n_parallel=1):
+        sol = real(self, z0, n_parallel)
+        from_seed = np.allclose(z0[:-2].reshape(-1, 3), seed)
+        if self.d == 20 and from_seed:
+            sol.status, sol.success = status, False
+        return sol
+
+    monkeypatch.setattr(ActuatorProblem, "solve", solve)
+    cfg = RunConfig(**{**FAST_FIT, "multistart": 0}, actuators=[17], workers=1, diameters_mm=[10, 20],
+                    max_parallel=1, walking_min=0.0)
+    runs = {}
+    for on in (True, False):
+        monkeypatch.setattr(run_mod, "RETRY_CAPPED", on)
+        (r,) = run_mod.solve_all(design, cfg, io.StringIO())
+        runs[on] = r
+    again = [a for a in runs[True].attempts if "the seed start stopped at a cap" in a["start"]]
+    if retried:
+        assert [(a["diameter_mm"], a["start"]) for a in again] == [(20, "10 mm fit (the seed start stopped at a cap)")]
+        assert again[0]["feasible"] and again[0]["status"] == "Solve_Succeeded"
+        # chosen where it scores best (no mass weight here: the lower objective)
+        tries = {a["diameter_mm"]: a["objective"] for a in runs[True].attempts if a["feasible"]}
+        assert runs[True].pam.diameter_mm == min(tries, key=tries.get)
+    else:
+        assert again == []
+    assert not any("stopped at a cap" in a["start"] for a in runs[False].attempts)
+    assert runs[False].pam.diameter_mm == 10
+
+
 @pytest.mark.skipif(not __import__("pamkin.gait").gait.DEFAULT_IK.is_file(), reason="walking trial (../shared/gait) not available")
 def test_run_walking_check_resizes_an_actuator_at_the_pressure_limit(tmp_path, monkeypatch):
     """The thesis design with only its tensor fasciae latae optimised (10 or 20 mm, one unit): the unit
