@@ -742,13 +742,17 @@ def test_dominated_tries_are_left_out_and_change_nothing(monkeypatch):
     assert np.allclose([p.location for p in pruned.pam.points], [p.location for p in full.pam.points], rtol=0, atol=1e-9)
 
 
-@pytest.mark.parametrize("status,retried", [("Maximum_CpuTime_Exceeded", True), ("Maximum_Iterations_Exceeded", True),
-                                             ("Infeasible_Problem_Detected", False)])
-def test_a_diameter_stopped_at_a_cap_is_solved_again_from_the_feasible_fit(monkeypatch, status, retried):
-    """A diameter whose solve from the seed route stops at IPOPT's CPU-time or iteration cap is solved once more
-    from the best feasible diameter's fit (route, resting and tendon length), and can then be chosen; a solve
-    that ended for what it found (here: local infeasibility) is not retried, nor is anything with the retry off.
-    The cap is simulated on the 20 mm solve from the seed (the solver's own answer, its status replaced)."""
+@pytest.mark.parametrize("status,ratio,retried", [("Maximum_CpuTime_Exceeded", 0.0, True),
+                                                   ("Maximum_Iterations_Exceeded", 0.0, True),
+                                                   ("Infeasible_Problem_Detected", 0.0, False),
+                                                   ("Maximum_CpuTime_Exceeded", 1.0, False)])
+def test_a_diameter_stopped_at_a_cap_is_solved_again_from_the_feasible_fit(monkeypatch, status, ratio, retried):
+    """A larger diameter whose solve from the seed route stops at IPOPT's CPU-time or iteration cap is solved once
+    more from the best feasible diameter's fit (route, resting and tendon length) where that fit's PAM reaches
+    ``RETRY_FORCE_RATIO`` of its rated force, and can then be chosen; a solve that ended for what it found (here:
+    local infeasibility) is not retried, nor one above a PAM short of that force (no rated-force rows here: ratio 0
+    against 1.0), nor anything with the retry off. The cap is simulated on the 20 mm solve from the seed (the
+    solver's own answer, its status replaced)."""
     import io
 
     from pamkin.optimize.problem import ActuatorProblem
@@ -766,6 +770,7 @@ def test_a_diameter_stopped_at_a_cap_is_solved_again_from_the_feasible_fit(monke
         return sol
 
     monkeypatch.setattr(ActuatorProblem, "solve", solve)
+    monkeypatch.setattr(run_mod, "RETRY_FORCE_RATIO", ratio)
     cfg = RunConfig(**{**FAST_FIT, "multistart": 0}, actuators=[17], workers=1, diameters_mm=[10, 20],
                     max_parallel=1, walking_min=0.0)
     runs = {}
