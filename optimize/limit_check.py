@@ -42,6 +42,11 @@ def check_poses(model, rom, coords: list[str], seed: int, actuator: int, n: int 
     return np.vstack([uniform, boundary_poses(model, rom, coords, rng, n // 2)])
 
 
+def rated_bound(diameter: int) -> float:
+    """The force per PAM [N] the rated-force rows (:data:`RATED`) allow: 98 % of Festo's rating."""
+    return festo.F_MAX_THEORETICAL[diameter] * (1.0 - RATED_MARGIN)
+
+
 def limit_rows(cfg, diameter: int, strain, unit_force, kmax) -> list[tuple]:
     """The strain and force limits of one PAM as rows ``(family, g, lower, upper)`` with lower ≤ g ≤ upper:
     contraction ≤ kmax (scaled) and stretch ≤ Festo's pretension, and with ``cfg.rated_force`` force per
@@ -52,7 +57,7 @@ def limit_rows(cfg, diameter: int, strain, unit_force, kmax) -> list[tuple]:
     rows = [(CONTRACTION_KMAX, strain - (cfg.kmax_scale * kmax - STRAIN_MARGIN), -np.inf, 0.0),
             (STRETCH, strain, -pre, np.inf)]
     if cfg.rated_force:
-        rows.append((RATED, unit_force - festo.F_MAX_THEORETICAL[diameter] * (1.0 - RATED_MARGIN), -np.inf, 0.0))
+        rows.append((RATED, unit_force - rated_bound(diameter), -np.inf, 0.0))
         # Festo's permissible contraction (0.25) is below the force model's kmax for 20 and 40 mm
         rows.append((CONTRACTION_FESTO, strain, -np.inf, festo.max_contraction(diameter) - STRAIN_MARGIN))
     return rows

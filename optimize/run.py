@@ -169,16 +169,14 @@ def _solve_actuator(task: tuple[int, int]) -> ActuatorResult:
 
     def peak_force_ratio(sol) -> float:
         """Largest force per PAM of a solution at the training samples over its rated force (0: not bounded)."""
-        from .limit_check import RATED  # noqa: PLC0415
-        from .samples import RATED_MARGIN  # noqa: PLC0415
+        from .limit_check import RATED, rated_bound  # noqa: PLC0415
 
         prob = problem(sol.diameter_mm, relaxed)
         rows = np.array([f == RATED for f in prob.family], dtype=bool)
         if not rows.any():
             return 0.0
-        rated = festo.F_MAX_THEORETICAL[sol.diameter_mm]
-        g = prob._values(sol.z, sol.n_parallel)[1]
-        return float(np.max(g[rows]) + rated * (1.0 - RATED_MARGIN)) / rated
+        g = prob._values(sol.z, sol.n_parallel)[1]          # the rows: force per PAM - rated_bound
+        return float(np.max(g[rows]) + rated_bound(sol.diameter_mm)) / festo.F_MAX_THEORETICAL[sol.diameter_mm]
 
     relaxed: frozenset = frozenset()
     # warm start from a run folder: its diameter and count first; the full loop only if that fails. With
