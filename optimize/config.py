@@ -102,10 +102,11 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      assumed Festo weights and block masses): where the one-segment stage's
                                  #      pulley blocks take it above this, blocks come off again, the least
                                  #      score lost per kg first (0: off)
-    pam_ends = true              # (v2, with mount) the end of its mount segment every PAM on one segment is anchored
-                                 #      at (the design's pam_at; the tendon on the other side): where the route has a
-                                 #      fixed length on both sides, the end that leaves the fewest intersecting PAM
-                                 #      pairs at the run's own poses (optimize.pam_clearance.choose_ends)
+    pam_ends = true              # (v2, with mount) where every PAM on one segment is anchored: the segment its body
+                                 #      sits on (the design's pam_on, where it fits on more than one) and its end
+                                 #      (pam_at; the tendon on the other side, where the route has a fixed length on
+                                 #      both sides): the place that leaves the fewest intersecting PAM pairs at the
+                                 #      run's own poses (optimize.pam_clearance.choose_ends)
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
     [transmission]               # per actuator: "4" = 2 puts a 2:1 pulley block on its PAM (pamkin.design:

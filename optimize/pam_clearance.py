@@ -69,23 +69,23 @@ def _walking_midframes(model) -> np.ndarray:
 
 
 def choose_ends(design, model, rom, seed: int = 0, n_random: int = ENDS_RANDOM):
-    """The end of its mount segment every PAM on one straight segment is anchored at (``pam_at``), where
-    the route on both sides of the segment has a fixed length (:func:`pamkin.pam_body.fixed_ends`; elsewhere
-    only one end is possible): the choice with the fewest intersecting PAM pairs, left–right (walking
-    trial) first, then same side (random poses and the walking trial) — a local search from the default
-    ends, one PAM flipped at a time, at poses of the optimiser's own stream (:data:`ENDS_STREAM`).
-    The routes, sizes and so every torque are unchanged.
+    """Where every PAM on one straight segment sits: the segment (``pam_on``, where the body fits on more
+    than one) and the end of it the PAM is anchored at (``pam_at``, where the route on both sides of the
+    segment has a fixed length: :func:`pamkin.pam_body.segment_options`) — the choice with the fewest
+    intersecting PAM pairs, left–right (walking trial) first, then same side (random poses and the walking
+    trial): a local search from the default places, one PAM moved at a time, at poses of the optimiser's own
+    stream (:data:`ENDS_STREAM`). The routes, sizes and so every torque are unchanged.
 
     Returns:
-        ``(design, lines)``: the design with ``pam_at`` set on every PAM on one segment (the default end
-        included, so the file says where each PAM sits) and a log line per PAM moved to its other end.
+        ``(design, lines)``: the design with ``pam_on`` and ``pam_at`` set on every PAM on one segment (the
+        default place included, so the file says where each PAM sits) and a log line per PAM moved.
     """
     import dataclasses
 
     from pamkin.audit import CLEARANCE_TOLERANCE, random_poses
     from pamkin.bones import body_pair_distance
     from pamkin.design import Design
-    from pamkin.pam_body import fixed_ends, pam_capsules, placements, route_positions
+    from pamkin.pam_body import pam_capsules, placements, route_positions, segment_names, segment_options
     from pamkin.robot import PamRobot
 
     n = len(design.pams)
@@ -98,66 +98,70 @@ def choose_ends(design, model, rom, seed: int = 0, n_random: int = ENDS_RANDOM):
         sets = {"random": (model.kinematics.forward(q_r, warn_range=False), both.evaluate(q_r))}
         if len(q_g):
             sets["gait"] = (model.kinematics.forward(q_g, warn_range=False), both.evaluate(q_g))
-    # the default ends (no pam_at) at every pose of both sets
-    default = Design(design.name, tuple(dataclasses.replace(p, pam_at=None) for p in design.pams),
+    # the default places (no pam_on, no pam_at) at every pose of both sets
+    default = Design(design.name, tuple(dataclasses.replace(p, pam_at=None, pam_on=None) for p in design.pams),
                      design.pressure_Pa, design.force_model, design.fitting_length_m, design.rom)
-    options, places = [], []
-    for place, pts, _ in placements(default, model, np.vstack([q_r, q_g])):
-        places.append(place)
-        if not place.on_one_segment:
-            options.append([place.side])
-            continue
-        ends = fixed_ends(pts, place.segment)
-        options.append([s for s, ok in zip(("origin", "insertion"), ends) if ok] or [place.side])
+    options, places, on_one = [], [], []
+    for pam, (place, pts, pam_len) in zip(default.pams, placements(default, model, np.vstack([q_r, q_g]))):
+        places.append((place.segment, place.side))
+        on_one.append(place.on_one_segment)
+        opts = segment_options(pts, pam, pam_len, design.fitting_length_m) if place.on_one_segment else []
+        options.append(opts if places[-1] in opts else [places[-1]])
     radius = [festo.outer_diameter(p.diameter_mm) / 2 for p in design.pams]
     caps = {}
     for key, (kin, ps) in sets.items():
         for c in (range(2 * n) if key == "gait" else range(n)):
             pts = route_positions(both.paths, kin, c)
-            for side in options[c % n]:
-                caps[(key, c, side)] = pam_capsules(pts, places[c % n].segment, ps.pam_lengths[:, c] + fit, side)
+            for j, side in options[c % n]:
+                caps[(key, c, j, side)] = pam_capsules(pts, j, ps.pam_lengths[:, c] + fit, side)
 
     def hit(ca, cb, ra, rb) -> bool:          # the audit's count: an overlap deeper than its tolerance
         return body_pair_distance(ca, cb, ra, rb, CLEARANCE_TOLERANCE)[0] < -CLEARANCE_TOLERANCE
 
     memo: dict = {}
 
-    def pair(a: int, sa: str, b: int, sb: str, lr: bool) -> bool:
-        key = (a, sa, b, sb, lr)
+    def pair(a: int, oa: tuple, b: int, ob: tuple, lr: bool) -> bool:
+        key = (a, oa, b, ob, lr)
         if key not in memo:
             if lr:
-                memo[key] = "gait" in sets and hit(caps[("gait", a, sa)], caps[("gait", b + n, sb)], radius[a], radius[b])
+                memo[key] = "gait" in sets and hit(caps[("gait", a, *oa)], caps[("gait", b + n, *ob)],
+                                                   radius[a], radius[b])
             else:
-                memo[key] = any(hit(caps[(s, a, sa)], caps[(s, b, sb)], radius[a], radius[b]) for s in sets)
+                memo[key] = any(hit(caps[(s, a, *oa)], caps[(s, b, *ob)], radius[a], radius[b]) for s in sets)
         return memo[key]
 
-    def count(choice: list[str]) -> tuple[int, int]:
+    def count(choice: list[tuple]) -> tuple[int, int]:
         same = sum(pair(a, choice[a], b, choice[b], False) for a in range(n) for b in range(a + 1, n))
         lr = sum(pair(a, choice[a], b, choice[b], True) for a in range(n) for b in range(n)) if "gait" in sets else 0
         return lr, same
 
-    choice = [p.side for p in places]
+    choice = list(places)
     best = count(choice)
     start = best
     improved = True
     while improved:
         improved = False
         for k in range(n):
-            for side in options[k]:
-                if side == choice[k]:
+            for option in options[k]:
+                if option == choice[k]:
                     continue
-                trial = choice[:k] + [side] + choice[k + 1:]
+                trial = choice[:k] + [option] + choice[k + 1:]
                 c = count(trial)
                 if c < best:
                     choice, best, improved = trial, c, True
     lines = []
     pams = []
     for k, pam in enumerate(design.pams):
-        side = choice[k] if places[k].on_one_segment else None
-        if side is not None and side != places[k].side:
-            lines.append(f"PAM ends: actuator {pam.id} {pam.name} anchored at the {side} end of its segment "
-                         f"(default {places[k].side})")
-        pams.append(dataclasses.replace(pam, pam_at=side))
+        if not on_one[k]:
+            pams.append(dataclasses.replace(pam, pam_at=None, pam_on=None))
+            continue
+        names = segment_names(pam)
+        (j, side), (j0, side0) = choice[k], places[k]
+        if (j, side) != (j0, side0):
+            where = f"the {side} end of its segment" if j == j0 else f"the {side} end of segment {names[j]}"
+            lines.append(f"PAM ends: actuator {pam.id} {pam.name} anchored at {where} "
+                         f"(default {side0} end of {names[j0]})")
+        pams.append(dataclasses.replace(pam, pam_at=side, pam_on=names[j]))
     lines.append(f"PAM ends: intersecting pairs at the run's check poses: same side {start[1]} -> {best[1]}, "
                  f"left-right (walking) {start[0]} -> {best[0]}")
     out = design

@@ -87,6 +87,10 @@ def scorecard_text(res) -> str:
                  "not on one segment), ignored: " + ", ".join(
                      f"{r['id']} {r['name']} ({r['pam_at_not_possible']})" for r in res.pams if r.get("pam_at_not_possible"))]
                 if any(r.get("pam_at_not_possible") for r in res.pams) else []),
+              *(["pam_on not possible (the PAM body does not fit on that segment with a constant tendon), the "
+                 "segment that holds it best used: " + ", ".join(
+                     f"{r['id']} {r['name']} ({r['pam_on_not_possible']})" for r in res.pams if r.get("pam_on_not_possible"))]
+                if any(r.get("pam_on_not_possible") for r in res.pams) else []),
               *([f"gait: frames within {thr['gait_residual_pct']:g} % per limiting coordinate: " +
                  ", ".join(f"{c} {100 * f:.0f} %" for c, f in sm["gait_limiting_coordinates"].items())]
                 if sm.get("gait_limiting_coordinates") else []),

@@ -21,6 +21,7 @@ mirror image (z → −z in every body frame, ``_r`` → ``_l``). Format::
         tendon_length_m: 0.1          # artificial tendon (may be negative only as a flagged defect)
         transmission: 1               # optional: 2 or 3 = a 2:1 or 3:1 pulley block on the PAM's free end
         pam_at: insertion             # optional: the end of its mount segment the PAM sits at (origin, insertion)
+        pam_on: p3->p4                # optional: its mount segment (default: the segment that holds it best)
         points:                       # route, origin first; PathPoint / MovingPathPoint
           - {name: p5, body: pelvis, location: [-0.126, -0.103, 0.069]}
           - ...
@@ -99,6 +100,9 @@ class Pam:
         pam_at: The end of its mount segment the PAM (on a block: its frame) is anchored at, "origin" or
             "insertion" (the artificial tendon on the other side); None: the origin end where the route
             before the segment has a fixed length, else the insertion end (:mod:`pamkin.pam_body`).
+        pam_on: The mount segment by name (``"p3->p4"``, :func:`pamkin.pam_body.segment_names`) where the
+            PAM body fits on more than one; None (or a segment that does not hold it): the segment that
+            holds it best (:func:`pamkin.pam_body.placement`). Where the body sits never changes a torque.
     """
 
     id: int
@@ -114,6 +118,7 @@ class Pam:
     notes: str = ""
     transmission: int = 1
     pam_at: str | None = None
+    pam_on: str | None = None
 
     @property
     def key(self) -> str:
@@ -173,6 +178,7 @@ class Design:
             "resting_length_m": float(p.resting_length_m), "tendon_length_m": float(p.tendon_length_m),
             **({"transmission": int(p.transmission)} if p.transmission != 1 else {}),
             **({"pam_at": p.pam_at} if p.pam_at is not None else {}),
+            **({"pam_on": p.pam_on} if p.pam_on is not None else {}),
             "notes": p.notes,
             "points": [_point_to_dict(pt) for pt in p.points],
         } for p in self.pams]
@@ -275,6 +281,11 @@ def design_from_dict(data: dict, path: str = "<design>", bodies: list[str] | Non
             raise _fail(path, f"{where}: bad route point: {type(e).__name__}: {e}") from None
         if len(points) < 2:
             raise _fail(path, f"{where}: a route needs at least 2 points")
+        pam_on = d.get("pam_on")
+        segments = [f"{a.name}->{b.name}" for a, b in zip(points[:-1], points[1:])]
+        if pam_on is not None and pam_on not in segments:
+            raise _fail(path, f"{where}: pam_on must name a segment of its route {segments} (the segment the "
+                              f"PAM body sits on), is {pam_on!r}")
         for pt in points:
             if bodies is not None and pt.body not in bodies:
                 raise _fail(path, f"{where}: route point {pt.name!r} is on unknown body {pt.body!r}; "
@@ -288,7 +299,7 @@ def design_from_dict(data: dict, path: str = "<design>", bodies: list[str] | Non
                 raise _fail(path, f"{where}: unknown coordinate(s) {bad}")
         pams.append(Pam(int(d["id"]), str(d["name"]), tuple(d["human_muscles"]), d["primary_coordinate"],
                         tuple(d.get("secondary_coordinates", [])), int(d["diameter_mm"]), npar, rest,
-                        tendon, points, str(d.get("notes", "")), int(ratio), pam_at))
+                        tendon, points, str(d.get("notes", "")), int(ratio), pam_at, pam_on))
     known = {"name", "description", "rom", "force_model", "pressure_Pa", "fitting_length_m", "pams"}
     try:
         return Design(str(data.get("name", Path(path).stem)), tuple(pams), float(data.get("pressure_Pa", 620e3)),

@@ -7,6 +7,8 @@ tendon before it). An end is possible only where the route's length on the tendo
 route's origin to the segment's start, or from the segment's end to the insertion — is the same at every
 pose (:func:`fixed_ends`); otherwise the PAM would have to slide along the segment as the joints move. A
 design may name the end (``pam_at``); by default the origin end where possible, else the insertion end.
+Where the body fits on more than one segment a design may name the segment too (``pam_on``); by default
+the one that leaves the most room. Neither changes a torque: the tendon pieces are constant either way.
 
 The audit (:mod:`pamkin.audit`) measures with these, and the optimiser's one-segment stage and PAM
 clearance pass (:mod:`pamkin.optimize.mount`, :mod:`pamkin.optimize.pam_clearance`) use the same
@@ -22,7 +24,7 @@ import numpy as np
 from .paths import PathSet
 
 __all__ = ["PAM_AT", "Placement", "body_interval", "body_room", "body_side", "fixed_ends", "mount_segment", "pam_capsules",
-           "placement", "placements", "route_positions", "segment_margin", "segment_names"]
+           "placement", "placements", "route_positions", "segment_margin", "segment_names", "segment_options"]
 
 #: The ends of its mount segment a PAM may be anchored at (``pam_at`` of a design's PAM).
 PAM_AT = ("origin", "insertion")
@@ -147,13 +149,39 @@ class Placement:
 def placement(pts: np.ndarray, pam, pam_len: np.ndarray, fitting_length: float) -> Placement:
     """:class:`Placement` of ``pam`` (a :class:`pamkin.design.Pam`) on its route ``pts`` (S, P, 3) at S poses
     with PAM lengths ``pam_len`` (S,) [m] — what ``pamkin audit``, the optimiser's PAM–PAM checks and the
-    viewer put where."""
+    viewer put where: the design's segment (``pam_on``) where the body fits on it with a constant tendon
+    (:func:`segment_options`), else the segment that holds it best."""
+    named = _named_segment(pam)
+    if named is not None and named < pts.shape[1] - 1:
+        m = segment_margin(pts, named, pam.resting_length_m, pam_len, fitting_length)
+        if m >= 0 and any(fixed_ends(pts, named)):
+            return Placement(named, m, body_side(pam.pam_at, *fixed_ends(pts, named)))
     seg_len = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=2)
     j, margin = mount_segment(body_room(seg_len, pam.resting_length_m, pam_len, fitting_length))
     if margin < 0:
         return Placement(j, margin, "origin")
     margin = segment_margin(pts, j, pam.resting_length_m, pam_len, fitting_length)
     return Placement(j, margin, body_side(pam.pam_at, *fixed_ends(pts, j)) if margin >= 0 else "origin")
+
+
+def _named_segment(pam) -> int | None:
+    """Index of the design's ``pam_on`` segment (None: not named)."""
+    name = getattr(pam, "pam_on", None)
+    if name is None:
+        return None
+    names = segment_names(pam)
+    return names.index(name) if name in names else None
+
+
+def segment_options(pts: np.ndarray, pam, pam_len: np.ndarray, fitting_length: float) -> list[tuple[int, str]]:
+    """Every ``(segment, end)`` a PAM body can sit at on its route ``pts`` (S, P, 3) over the S poses: the
+    segments it fits on (:func:`segment_margin` >= 0) with each end whose route on the tendon's other side
+    has a fixed length (:func:`fixed_ends`). Empty where the PAM fits on no segment."""
+    out = []
+    for j in range(pts.shape[1] - 1):
+        if segment_margin(pts, j, pam.resting_length_m, pam_len, fitting_length) >= 0:
+            out += [(j, side) for side, ok in zip(PAM_AT, fixed_ends(pts, j)) if ok]
+    return out
 
 
 def segment_margin(pts: np.ndarray, j: int, resting_length: float, pam_len: np.ndarray, fitting_length: float) -> float:

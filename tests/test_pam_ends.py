@@ -1,5 +1,5 @@
-"""Where a PAM sits on its route (``pam_at``): the design file, the audit's PAM bodies and the optimiser's
-choice of ends (optimize.pam_clearance.choose_ends) on two PAMs side by side on the femur."""
+"""Where a PAM sits on its route (``pam_at``, ``pam_on``): the design file, the audit's PAM bodies and the
+optimiser's choice of segments and ends (optimize.pam_clearance.choose_ends) on PAMs side by side on the femur."""
 
 from __future__ import annotations
 
@@ -162,3 +162,71 @@ def test_audit_view_draws_the_pam_bodies_where_the_audit_puts_them(tmp_path):
         A, B = X[0, 3 * k], X[0, 3 * k + 1]
         u = (B - A) / np.linalg.norm(B - A)
         np.testing.assert_allclose(tf[path][:3, 3], A + (start + body / 2) * u, atol=2e-6)
+
+
+def _two_segment_pair(pam_on: str | None = None) -> Design:
+    """PAM 1 on a femur-fixed route a -> b -> c (0.15 m then 0.20 m down the thigh): its body (0.10 m PAM
+    + 2 x 12.5 mm fittings) fits on both segments, best (most room) on b->c. PAM 2, 10 mm beside it, on
+    d -> e at 0.25–0.40 m: its body lies beside b->c at either end, never beside a->b."""
+    p1 = Pam(1, "toy 1", ("vas_med_r",), "knee_angle_r", (), 20, 1, 0.10, 0.35 - 0.025 - 0.10,
+             (PathPoint("a", "femur_r", (0.0, -0.05, 0.03)), PathPoint("b", "femur_r", (0.0, -0.20, 0.03)),
+              PathPoint("c", "femur_r", (0.0, -0.40, 0.03))), pam_on=pam_on)
+    p2 = Pam(2, "toy 2", ("vas_med_r",), "knee_angle_r", (), 20, 1, 0.10, 0.15 - 0.025 - 0.10,
+             (PathPoint("d", "femur_r", (0.01, -0.25, 0.03)), PathPoint("e", "femur_r", (0.01, -0.40, 0.03))))
+    return Design("toy", (p1, p2), rom="robot_thesis")
+
+
+def _audit_toy(des: Design):
+    opts = AuditOptions(n_random=40, gait_ik=None, gait_plan=False, n_geometry=40, n_sweep=5, n_grid=3,
+                        segment_step_m=0.05)
+    return audit_design(des, options=opts)
+
+
+def test_design_file_keeps_pam_on(tmp_path):
+    des = _two_segment_pair("a->b")
+    again = load_design(save_design(des, tmp_path / "d.yaml"))
+    assert again.pam(1).pam_on == "a->b" and again.pam(2).pam_on is None
+    d = again.to_dict()
+    assert d["pams"][0]["pam_on"] == "a->b" and "pam_on" not in d["pams"][1]
+    d["pams"][0]["pam_on"] = "a->c"
+    with pytest.raises(DataFileError, match=r"id 1.*pam_on must name a segment of its route \['a->b', 'b->c'\]"):
+        design_from_dict(d, "bad.yaml")
+
+
+def test_choose_ends_moves_a_body_to_its_other_segment():
+    """By default PAM 1's body sits on b->c (more room), beside PAM 2's: the audit counts the pair at either
+    end of either body. choose_ends moves PAM 1 to a->b (no end of b->c separates them) and writes pam_on;
+    the audit puts the body there (50 mm above PAM 2's) and counts none; the torques are unchanged."""
+    from pamkin.optimize.pam_clearance import choose_ends
+    from pamkin.robot import PamRobot
+
+    des = _two_segment_pair()
+    res = _audit_toy(des)
+    assert [r["mount_segment"] for r in res.pams] == ["b->c", "d->e"]
+    assert res.summary["pam_pairs_intersecting"] == 1
+    chosen, lines = choose_ends(des, pamkin.gait2392(), load_rom("robot_thesis", "r"), seed=0, n_random=20)
+    assert chosen.pam(1).pam_on == "a->b" and chosen.pam(2).pam_on == "d->e", lines
+    assert any(s.startswith("PAM ends: actuator 1 toy 1 anchored at the ") and "end of segment a->b (default "
+               "origin end of b->c)" in s for s in lines), lines
+    assert lines[-1].startswith("PAM ends: intersecting pairs at the run's check poses: same side 1 -> 0")
+    res2 = _audit_toy(chosen)
+    assert [r["mount_segment"] for r in res2.pams] == ["a->b", "d->e"]
+    assert res2.summary["pam_pairs_intersecting"] == 0 and all(r["on_one_segment"] for r in res2.pams)
+    assert not any(r["pam_on_not_possible"] for r in res2.pams)
+    q = np.zeros((3, len(pamkin.gait2392().coordinates)))
+    np.testing.assert_array_equal(PamRobot(chosen, sides=("r",)).evaluate(q).torques,
+                                  PamRobot(des, sides=("r",)).evaluate(q).torques)
+
+
+def test_audit_names_a_segment_the_body_does_not_fit_on():
+    """pam_on: a->b on PAM 1 with a 0.15 m PAM (body 0.175 m): it does not fit on the 0.15 m a->b, so the
+    audit puts it on b->c and says so."""
+    from pamkin.audit_report import scorecard_text
+
+    des = _two_segment_pair("a->b")
+    p1 = dataclasses.replace(des.pam(1), resting_length_m=0.15, tendon_length_m=0.35 - 0.025 - 0.15)
+    res = _audit_toy(des.replace_pam(p1))
+    row = res.pams[0]
+    assert row["mount_segment"] == "b->c" and row["on_one_segment"] and row["pam_on_not_possible"] == "a->b"
+    assert "pam_on not possible (the PAM body does not fit on that segment with a constant tendon), the segment " \
+           "that holds it best used: 1 toy 1 (a->b)" in scorecard_text(res)
