@@ -600,7 +600,9 @@ def _sensitivity(right: PamRobot, human: Model, rom: RangeOfMotion, rows: list[d
 
 
 def _bone_checks(right: PamRobot, bones, sets: list, rows: list[dict], step: float, thr: dict) -> None:
-    """Brackets, points inside bone and segment penetrations (right side).
+    """Brackets, points inside bone and segment penetrations (right side): per segment the deepest
+    penetration over every pose, the bone, and the fraction of the poses at which it goes deeper than
+    the limit (``poses_over_limit_fraction``: where a route needs a guide or a different line).
 
     Args:
         sets: ``(kinematics state, bones to test or None for all)`` per sample set.
@@ -617,6 +619,9 @@ def _bone_checks(right: PamRobot, bones, sets: list, rows: list[dict], step: flo
             seg_keys.append((k, j))
     seg_depth = np.zeros(len(seg_keys))
     seg_bone = np.full(len(seg_keys), -1)
+    seg_hits = np.zeros(len(seg_keys))      # poses at which the segment goes deeper than the limit
+    n_poses = 0
+    limit = thr["segment_penetration_max_m"]
     for state, only in sets:
         X, _ = right.paths.point_positions(state)
         d, near = bones.signed_distance(state, X, margin=0.0, bodies=only)
@@ -642,12 +647,15 @@ def _bone_checks(right: PamRobot, bones, sets: list, rows: list[dict], step: flo
         A_all = np.concatenate([np.repeat(A[:, None, :], len(t), axis=1) for A, t in zip(starts, ts)], axis=1)
         B_all = np.concatenate([np.repeat(B[:, None, :], len(t), axis=1) for B, t in zip(ends, ts)], axis=1)
         chunk = max(1, 400_000 // len(t_all))
+        first = np.concatenate([[0], np.cumsum([len(t) for t in ts])[:-1]])   # each segment's first test point
+        n_poses += len(A_all)
         for c0 in range(0, len(A_all), chunk):
             P = A_all[c0:c0 + chunk] + t_all[None, :, None] * (B_all[c0:c0 + chunk] - A_all[c0:c0 + chunk])
             # only penetrations count here: points a coarse grid proves outside every bone are skipped
             # (BoneSet.far_from; every distance <= 0 is the exact one)
             dd, nb = bones.signed_distance(_slice_state(state, c0, c0 + chunk), P, margin=0.0, bodies=only,
                                            prune=True)
+            seg_hits += np.sum(np.maximum.reduceat(-dd, first, axis=1) > limit, axis=0)
             col = np.argmin(dd, axis=0)
             depth = -dd[col, np.arange(len(t_all))]
             nbest = nb[col, np.arange(len(t_all))]
@@ -682,7 +690,8 @@ def _bone_checks(right: PamRobot, bones, sets: list, rows: list[dict], step: flo
         for name in segment_names(pam):
             dp = float(max(seg_depth[si], 0.0))
             segs.append({"segment": name, "penetration_m": dp,
-                         "bone": bones.bodies[seg_bone[si]] if dp > 0 and seg_bone[si] >= 0 else None})
+                         "bone": bones.bodies[seg_bone[si]] if dp > 0 and seg_bone[si] >= 0 else None,
+                         "poses_over_limit_fraction": float(seg_hits[si] / n_poses) if n_poses else 0.0})
             si += 1
         row["segments"] = segs
         row["max_segment_penetration_m"] = max(x["penetration_m"] for x in segs)

@@ -513,3 +513,41 @@ def test_gait_criterion_names_the_limiting_coordinates():
     assert lim == pytest.approx(expected) and list(lim) == sorted(lim, key=lim.get)
     assert next(iter(lim)) == "hip_adduction_l"          # 60 % of the frames (thesis design)
     assert "gait: frames within 5 % per limiting coordinate: hip_adduction_l 60 %" in scorecard_text(res)
+
+
+def test_segment_pose_fraction_by_brute_force(gait_bones):
+    """Per route segment, the fraction of the geometry poses at which it goes deeper into bone than the
+    limit (``poses_over_limit_fraction``) equals a pose-by-pose count without the audit's pruning and
+    chunking (same test points along each segment, the right leg's bones for random poses), on the thesis
+    design; a segment over the limit has a fraction above 0, the others 0, and some lie strictly between."""
+    import math
+
+    from pamkin.audit import _slice_state
+    from pamkin.pam_body import route_positions
+    from pamkin.robot import PamRobot
+
+    opts = AuditOptions(**{**SMALL, "n_geometry": 12, "segment_step_m": 0.005})
+    res = audit_design("thesis", options=opts)
+    limit = load_limits()["thresholds"]["segment_penetration_max_m"]
+    skel = robot_skeleton()
+    des = load_design("thesis")
+    right = PamRobot(des, skel, sides=("r",))
+    q = random_poses(skel, load_rom(des.rom, "r"), opts.n_random, opts.seed)[:opts.n_geometry]
+    ks = skel.kinematics.forward(q, warn_range=False)
+    right_side = [b for b in gait_bones.bodies if not b.endswith("_l")]
+    fractions = []
+    for k, row in enumerate(res.pams):
+        pts = route_positions(right.paths, ks, k)
+        for j, seg in enumerate(row["segments"]):
+            A, B = pts[:, j], pts[:, j + 1]
+            n_t = max(3, int(math.ceil(float(np.max(np.linalg.norm(B - A, axis=1))) / opts.segment_step_m)) + 1)
+            t = np.linspace(0.0, 1.0, n_t)
+            hits = 0
+            for s in range(len(q)):
+                X = (A[s] + t[:, None] * (B[s] - A[s]))[None]
+                d, _ = gait_bones.signed_distance(_slice_state(ks, s, s + 1), X, margin=None, bodies=right_side)
+                hits += bool(-d.min() > limit)
+            assert seg["poses_over_limit_fraction"] == pytest.approx(hits / len(q), abs=1e-12), (row["name"], seg)
+            assert (seg["poses_over_limit_fraction"] > 0) == (seg["penetration_m"] > limit)
+            fractions.append(seg["poses_over_limit_fraction"])
+    assert any(0 < f < 1 for f in fractions) and any(f == 1 for f in fractions) and any(f == 0 for f in fractions)
