@@ -405,8 +405,8 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
         # the design's pam_at where the route does not allow it (or the PAM is not on one segment)
         row["pam_at_not_possible"] = pam.pam_at if pam.pam_at not in (None, row["pam_at"]) else None
         # the design's pam_on where the PAM body does not fit there with a constant tendon
-        row["pam_on_not_possible"] = pam.pam_on if pam.pam_on not in (None, row["mount_segment"]) or (
-            pam.pam_on is not None and margin < 0) else None
+        row["pam_on_not_possible"] = pam.pam_on if pam.pam_on is not None and (
+            pam.pam_on != row["mount_segment"] or margin < 0) else None
         row["bends_over"] = None if margin >= 0 else (
             pam.points[j + 1].name if j + 1 < len(pam.points) - 1 else pam.points[j].name)
         F = st_all.unit_forces[:, k]

@@ -154,8 +154,9 @@ def placement(pts: np.ndarray, pam, pam_len: np.ndarray, fitting_length: float) 
     named = _named_segment(pam)
     if named is not None and named < pts.shape[1] - 1:
         m = segment_margin(pts, named, pam.resting_length_m, pam_len, fitting_length)
-        if m >= 0 and any(fixed_ends(pts, named)):
-            return Placement(named, m, body_side(pam.pam_at, *fixed_ends(pts, named)))
+        ends = fixed_ends(pts, named)
+        if m >= 0 and any(ends):
+            return Placement(named, m, body_side(pam.pam_at, *ends))
     seg_len = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=2)
     j, margin = mount_segment(body_room(seg_len, pam.resting_length_m, pam_len, fitting_length))
     if margin < 0:
