@@ -24,7 +24,7 @@ import numpy as np
 
 from pamkin import festo
 from pamkin.design import ROBOT_DESIGN, Design, Pam, load_design, save_design
-from pamkin.errors import PamkinError, RangeWarning
+from pamkin.errors import DataFileError, PamkinError, RangeWarning
 from pamkin.urdf_build import ROBOT_URDF, atomic_write, render_robot_urdf
 
 from .config import RunConfig
@@ -1212,6 +1212,11 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, o
                 seed = seed.replace_pam(p)
                 warm_ids.add(p.id)
     _STATE["warm_ids"] = warm_ids      # these actuators try their warm diameter and count first
+    rolled = [p.id for p in seed.pams if p.rollers]
+    if rolled:
+        raise DataFileError(seed.path or "<design>", f"PAM(s) {rolled} have rollers, which pamkin optimize does not "
+                            "model yet (it would move their points and ignore the rollers); remove the rollers to "
+                            "optimise, or audit, view and export the design as it is")
     cfg.check_design(seed)
     seed = cfg.apply_transmission(seed)
     seed = Design(seed.name, seed.pams, cfg.pressure_Pa, cfg.force_model, seed.fitting_length_m, seed.rom,

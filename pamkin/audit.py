@@ -393,7 +393,8 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
     mounts = []
     for k, (pam, row) in enumerate(zip(des.pams, rows)):
         pts = route_positions(right.paths, ks_all, k)
-        place = placement(pts, pam, st_all.pam_lengths[:, k], des.fitting_length_m)
+        place = placement(pts, pam, st_all.pam_lengths[:, k], des.fitting_length_m,
+                          right.segment_lengths(ks_all, k) if pam.rollers else None)
         j, margin = place.segment, place.margin
         seg_names = segment_names(pam)
         mounts.append(place)
@@ -622,7 +623,16 @@ def _bone_checks(right: PamRobot, bones, sets: list, rows: list[dict], step: flo
     seg_hits = np.zeros(len(seg_keys))      # poses at which the segment goes deeper than the limit
     n_poses = 0
     limit = thr["segment_penetration_max_m"]
+    # rollers: their axis sampled end to end in the body frame; distances less the radius are the surface's
+    kin = right.model.kinematics
+    roller_axes = {(k, r.segment): (kin.frames.index(r.body), np.asarray(r.centre) + np.outer(
+        np.linspace(-0.5, 0.5, 9) * r.length_m, r.axis)) for k, pam in enumerate(des.pams) for r in pam.rollers}
+    roller_any = dict.fromkeys(roller_axes, np.inf)
     for state, only in sets:
+        for key, (b, local) in roller_axes.items():
+            Xr = state.body_p[:, b, None, :] + np.einsum("sij,kj->ski", state.body_R[:, b], local)
+            dr, _ = bones.signed_distance(state, Xr, margin=0.0, bodies=only)
+            roller_any[key] = min(roller_any[key], float(np.min(dr)))
         X, _ = right.paths.point_positions(state)
         d, near = bones.signed_distance(state, X, margin=0.0, bodies=only)
         s = np.argmin(d, axis=0)
@@ -631,23 +641,27 @@ def _bone_checks(right: PamRobot, bones, sets: list, rows: list[dict], step: flo
         d_pt[better] = dm[better]
         b_pt[better] = near[s, np.arange(n_all)][better]
         starts, ends, ts = [], [], []
-        route_pts = [route_positions(right.paths, state, k) for k in range(len(des.pams))]
-        seg_of, seg_t = [], []
+        # the straight pieces of every segment (over a roller: before and after it; the roller is checked
+        # as an attachment)
+        route_pieces = [right.route_pieces(state, k) for k in range(len(des.pams))]
+        seg_of, seg_t, n_test = [], [], []
         for si, (k, j) in enumerate(seg_keys):
-            A, B = route_pts[k][:, j], route_pts[k][:, j + 1]
-            Lmax = float(np.max(np.linalg.norm(B - A, axis=1)))
-            t = np.linspace(0.0, 1.0, max(3, int(math.ceil(Lmax / step)) + 1))
-            starts.append(A)
-            ends.append(B)
-            ts.append(t)
-            seg_of.append(np.full(len(t), si))
-            seg_t.append(t)
+            n_test.append(0)
+            for A, B in route_pieces[k][j]:
+                Lmax = float(np.max(np.linalg.norm(B - A, axis=1)))
+                t = np.linspace(0.0, 1.0, max(3, int(math.ceil(Lmax / step)) + 1))
+                starts.append(A)
+                ends.append(B)
+                ts.append(t)
+                seg_of.append(np.full(len(t), si))
+                seg_t.append(t)
+                n_test[-1] += len(t)
         seg_of_a = np.concatenate(seg_of)
         t_all = np.concatenate(seg_t)
         A_all = np.concatenate([np.repeat(A[:, None, :], len(t), axis=1) for A, t in zip(starts, ts)], axis=1)
         B_all = np.concatenate([np.repeat(B[:, None, :], len(t), axis=1) for B, t in zip(ends, ts)], axis=1)
         chunk = max(1, 400_000 // len(t_all))
-        first = np.concatenate([[0], np.cumsum([len(t) for t in ts])[:-1]])   # each segment's first test point
+        first = np.concatenate([[0], np.cumsum(n_test)[:-1]])   # each segment's first test point
         n_poses += len(A_all)
         for c0 in range(0, len(A_all), chunk):
             P = A_all[c0:c0 + chunk] + t_all[None, :, None] * (B_all[c0:c0 + chunk] - A_all[c0:c0 + chunk])
@@ -680,9 +694,19 @@ def _bone_checks(right: PamRobot, bones, sets: list, rows: list[dict], step: flo
                              "min_any_bone_distance_m": dmin if np.isfinite(dmin) else None,
                              "deepest_bone": bones.bodies[b_pt[a + i]] if dmin < 0 and b_pt[a + i] >= 0 else None})
         row["points"] = pts_info
-        fixed = [p for p in pts_info if p["own_bone_distance_m"] is not None]
+        rollers = []
+        for r in pam.rollers:
+            _, local = roller_axes[(k, r.segment)]
+            dany = roller_any[(k, r.segment)] - r.radius_m
+            rollers.append({"name": f"roller {r.segment}", "segment": r.segment, "body": r.body,
+                            "radius_m": r.radius_m,
+                            "own_bone_distance_m": float(np.min(bones.body_signed_distance(r.body, local))) - r.radius_m,
+                            "min_any_bone_distance_m": dany if np.isfinite(dany) else None})
+        row["rollers"] = rollers
+        # rollers count as fixed attachments (their surface: outside bone, within a bracket's distance of it)
+        fixed = [p for p in pts_info + rollers if p["own_bone_distance_m"] is not None]
         row["points_inside_own_bone"] = sum(1 for p in fixed if p["own_bone_distance_m"] < 0)
-        row["points_inside_any_bone"] = sum(1 for p in pts_info if p["min_any_bone_distance_m"] is not None
+        row["points_inside_any_bone"] = sum(1 for p in pts_info + rollers if p["min_any_bone_distance_m"] is not None
                                             and p["min_any_bone_distance_m"] < 0)
         row["points_over_bracket"] = sum(1 for p in fixed if p["own_bone_distance_m"] > thr["bracket_max_m"])
         row["max_bracket_m"] = max((p["own_bone_distance_m"] for p in fixed), default=None)

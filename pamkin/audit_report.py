@@ -53,7 +53,7 @@ def scorecard_text(res) -> str:
              "",
              "Legend: d = Festo diameter [mm] (/k: on a k:1 pulley block); NRMSE = RMS(robot - human) / human peak about the primary coordinate, random poses; "
              "worst = largest such error over every coordinate crossed (÷ the same peak); dz = dead-zone % of random "
-             "poses/gait frames; bracket = distance of the farthest fixed attachment point from its own bone [mm] "
+             "poses/gait frames; bracket = distance of the farthest fixed attachment point (or roller surface) from its own bone [mm] "
              "(negative: inside); seg = deepest route segment into any bone [mm]; 1seg = PAM fits on one straight "
              "segment (o/i: at its origin/insertion end, pam_at); F/rated = peak force per unit / Festo rated force; sens = primary-torque change for a 1 mm "
              "attachment error [% of human peak]; x = actuators whose PAM bodies it intersects.",
@@ -195,6 +195,7 @@ def audit_view(res, path: str | os.PathLike, geometry_dir: str | None = None) ->
 
     from .bones import BoneSet  # noqa: PLC0415
     from .robot import PamRobot, robot_skeleton  # noqa: PLC0415
+    from .rollers import roller_frame  # noqa: PLC0415
     from .view import StaticWindow, _frame_camera, _translation  # noqa: PLC0415
 
     thr = res.thresholds
@@ -232,20 +233,33 @@ def audit_view(res, path: str | os.PathLike, geometry_dir: str | None = None) ->
     X, _ = robot.paths.point_positions(st)
     for k, (pam, row) in enumerate(zip(des.pams, res.pams)):
         a = robot.paths._path_start[k]
+        pieces = robot.route_pieces(st, k)          # over a roller: the pieces before and after it
         for j, seg in enumerate(row["segments"]):
-            A, B = X[0, a + j], X[0, a + j + 1]
-            L = float(np.linalg.norm(B - A))
-            if L < 1e-9:
-                continue
             bad = seg["penetration_m"] > thr["segment_penetration_max_m"]
-            y = (B - A) / L
-            x = np.cross(y, [0.0, 0.0, 1.0]) if abs(y[2]) < 0.9 else np.cross(y, [1.0, 0.0, 0.0])
-            x /= np.linalg.norm(x)
+            for i, (PA, PB) in enumerate(pieces[j]):
+                A, B = PA[0], PB[0]
+                L = float(np.linalg.norm(B - A))
+                if L < 1e-9:
+                    continue
+                y = (B - A) / L
+                x = np.cross(y, [0.0, 0.0, 1.0]) if abs(y[2]) < 0.9 else np.cross(y, [1.0, 0.0, 0.0])
+                x /= np.linalg.norm(x)
+                T = np.eye(4)
+                T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, y, np.cross(x, y), 0.5 * (A + B)
+                node = f"pamkin/pams/{pam.key}/s{j}" + (f"_{i}" if i else "")
+                vis[node].set_object(g.Cylinder(L, 0.004 if bad else 0.0025),
+                                     g.MeshLambertMaterial(color=0xD62728 if bad else 0x2CA02C))
+                vis[node].set_transform(T)
+        for r, info in zip(robot.rollers[k], row.get("rollers", [])):   # rollers: red where bad, as points
+            own = info["own_bone_distance_m"]
+            bad = own < 0 or own > thr["bracket_max_m"]
+            b = skel.kinematics.frames.index(r.body)
             T = np.eye(4)
-            T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, y, np.cross(x, y), 0.5 * (A + B)
-            node = f"pamkin/pams/{pam.key}/s{j}"
-            vis[node].set_object(g.Cylinder(L, 0.004 if bad else 0.0025),
-                                 g.MeshLambertMaterial(color=0xD62728 if bad else 0x2CA02C))
+            T[:3, :3] = st.body_R[0, b] @ (roller_frame(r)[:, [0, 2, 1]] * np.array([1.0, 1.0, -1.0]))
+            T[:3, 3] = st.body_p[0, b] + st.body_R[0, b] @ np.asarray(r.centre)
+            node = f"pamkin/points/{pam.key}/roller_{r.segment.replace('->', '_')}"
+            vis[node].set_object(g.Cylinder(r.length_m, r.radius_m),
+                                 g.MeshLambertMaterial(color=0xD62728 if bad else 0x1F77B4))
             vis[node].set_transform(T)
         for i, p in enumerate(row["points"]):
             own = p["own_bone_distance_m"]

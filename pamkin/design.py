@@ -22,6 +22,9 @@ mirror image (z → −z in every body frame, ``_r`` → ``_l``). Format::
         transmission: 1               # optional: 2 or 3 = a 2:1 or 3:1 pulley block on the PAM's free end
         pam_at: insertion             # optional: the end of its mount segment the PAM sits at (origin, insertion)
         pam_on: p3->p4                # optional: its mount segment (default: the segment that holds it best)
+        rollers:                      # optional: cable guides on bone (pamkin.rollers)
+          - {segment: p1->p2, body: femur_r, centre: [-0.03, -0.05, 0.0], axis: [0, 0, 1], side: [-1, 0, 0],
+             radius_m: 0.008, length_m: 0.04}
         points:                       # route, origin first; PathPoint / MovingPathPoint
           - {name: p5, body: pelvis, location: [-0.126, -0.103, 0.069]}
           - ...
@@ -50,6 +53,7 @@ import yaml
 from .errors import DataFileError
 from .functions import Constant, MultiplierFunction
 from .pam_body import PAM_AT
+from .rollers import Roller, roller_from_dict
 from .osim import (
     AnyPathPoint,
     ConditionalPathPoint,
@@ -103,6 +107,8 @@ class Pam:
         pam_on: The mount segment by name (``"p3->p4"``, :func:`pamkin.pam_body.segment_names`) where the
             PAM body fits on more than one; None (or a segment that does not hold it): the segment that
             holds it best (:func:`pamkin.pam_body.placement`). Where the body sits never changes a torque.
+        rollers: Cable guides on its route's segments (:mod:`pamkin.rollers`; at most one per segment; the
+            PAM body never sits on a segment with a roller).
     """
 
     id: int
@@ -119,6 +125,7 @@ class Pam:
     transmission: int = 1
     pam_at: str | None = None
     pam_on: str | None = None
+    rollers: tuple[Roller, ...] = ()
 
     @property
     def key(self) -> str:
@@ -179,6 +186,7 @@ class Design:
             **({"transmission": int(p.transmission)} if p.transmission != 1 else {}),
             **({"pam_at": p.pam_at} if p.pam_at is not None else {}),
             **({"pam_on": p.pam_on} if p.pam_on is not None else {}),
+            **({"rollers": [r.to_dict() for r in p.rollers]} if p.rollers else {}),
             "notes": p.notes,
             "points": [_point_to_dict(pt) for pt in p.points],
         } for p in self.pams]
@@ -286,6 +294,18 @@ def design_from_dict(data: dict, path: str = "<design>", bodies: list[str] | Non
         if pam_on is not None and pam_on not in segments:
             raise _fail(path, f"{where}: pam_on must name a segment of its route {segments} (the segment the "
                               f"PAM body sits on), is {pam_on!r}")
+        raw_rollers = d.get("rollers") or []
+        if not isinstance(raw_rollers, list):
+            raise _fail(path, f"{where}: rollers must be a list of mappings")
+        try:
+            rollers = tuple(roller_from_dict(r, segments, bodies) for r in raw_rollers)
+        except ValueError as e:
+            raise _fail(path, f"{where}: {e}") from None
+        twice = sorted({r.segment for r in rollers if sum(x.segment == r.segment for x in rollers) > 1})
+        if twice:
+            raise _fail(path, f"{where}: at most one roller per segment; {twice} have more")
+        if pam_on is not None and pam_on in {r.segment for r in rollers}:
+            raise _fail(path, f"{where}: pam_on {pam_on!r} has a roller: a PAM body sits on a straight segment")
         for pt in points:
             if bodies is not None and pt.body not in bodies:
                 raise _fail(path, f"{where}: route point {pt.name!r} is on unknown body {pt.body!r}; "
@@ -299,7 +319,7 @@ def design_from_dict(data: dict, path: str = "<design>", bodies: list[str] | Non
                 raise _fail(path, f"{where}: unknown coordinate(s) {bad}")
         pams.append(Pam(int(d["id"]), str(d["name"]), tuple(d["human_muscles"]), d["primary_coordinate"],
                         tuple(d.get("secondary_coordinates", [])), int(d["diameter_mm"]), npar, rest,
-                        tendon, points, str(d.get("notes", "")), int(ratio), pam_at, pam_on))
+                        tendon, points, str(d.get("notes", "")), int(ratio), pam_at, pam_on, rollers))
     known = {"name", "description", "rom", "force_model", "pressure_Pa", "fitting_length_m", "pams"}
     try:
         return Design(str(data.get("name", Path(path).stem)), tuple(pams), float(data.get("pressure_Pa", 620e3)),

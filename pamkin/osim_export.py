@@ -27,6 +27,9 @@ What is written:
   so it is connected to the coordinate of the point's other components (the constant
   ignores it). OpenSim 4.6 requires the three components to depend on one coordinate
   (pamkin does not): other points are refused with :class:`OsimExportError`.
+* Each roller (:mod:`pamkin.rollers`) as a ``WrapCylinder`` (quadrant ``+x``) in its body's
+  ``WrapObjectSet`` and a ``PathWrap`` over its segment's two points; OpenSim's wrapped lengths equal
+  pamkin's (tested).
 * ``optimal_force`` = the PAM's maximum force at 620 kPa, F620(l0) (:func:`pamkin.festo.f620`,
   the v3 model's isometric force at zero contraction) × ``n_parallel`` ÷ the transmission (a k:1
   block divides the route's tension by k, :mod:`pamkin.design`); ``min_control`` 0,
@@ -50,7 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from . import festo
-from .design import Design, Pam, mirror_point
+from .design import Design, Pam, mirror_name, mirror_point
 from .errors import DataFileError, PamkinError
 from .functions import Constant, LinearFunction, MultiplierFunction, PolynomialFunction, SimmSpline
 from .osim import (
@@ -64,8 +67,10 @@ from .osim import (
     OsimModel,
     TransformAxis,
 )
+from .rollers import mirror_roller, path_wraps
 from .rom import RangeOfMotion
 from .urdf_build import atomic_write
+from .wrapping import PathWrap, WrapObject
 
 #: OpenSimDocument version written (the OpenSim 4.0 format; read by every 4.x release).
 OSIM_VERSION = "40000"
@@ -154,6 +159,14 @@ def design_document(design: Design, skeleton: OsimModel, *, rom: RangeOfMotion |
         _text(bel, "mass", _num(b.mass))
         _text(bel, "mass_center", _nums(b.mass_center))
         _text(bel, "inertia", _nums(b.inertia))
+        wraps = [pw.wrap_object for pws in _design_wraps(design).values() for pw in pws
+                 if pw.wrap_object.body == b.name]
+        if wraps:
+            wos = ET.SubElement(bel, "WrapObjectSet", name="wrapobjectset")
+            objs = ET.SubElement(wos, "objects")
+            for wo in wraps:
+                objs.append(_wrap_cylinder_element(wo))
+            ET.SubElement(wos, "groups")
 
     jointset = _set(model, "JointSet", "jointset")
     coords = {c.name: c for c in skeleton.coordinates}
@@ -292,12 +305,57 @@ def _actuator_element(design: Design, p: Pam, side: str, skeleton: OsimModel) ->
         objs.append(_point_element(pt, nm, skeleton))
     ET.SubElement(pps, "groups")
     pws = ET.SubElement(gp, "PathWrapSet")
-    ET.SubElement(pws, "objects")
+    pwo = ET.SubElement(pws, "objects")
+    for pw in _design_wraps(design).get((p.id, side), []):
+        el = ET.SubElement(pwo, "PathWrap", name=pw.name)
+        _text(el, "wrap_object", pw.wrap_object.name)
+        _text(el, "method", pw.method)
+        _text(el, "range", " ".join(str(int(v)) for v in pw.range))
     ET.SubElement(pws, "groups")
     app = ET.SubElement(gp, "Appearance")
     _text(app, "color", _COLORS.get(p.diameter_mm, "0.8 0.1 0.1"))
     _text(act, "optimal_force", _num(f_max))
     return act
+
+
+def _design_wraps(design: Design) -> dict[tuple[int, str], list[PathWrap]]:
+    """Per (PAM id, side) the PathWraps of its rollers (:mod:`pamkin.rollers`), wrap objects named
+    ``pamNN_{side}_rollerK``."""
+    out = {}
+    for p in design.pams:
+        if not p.rollers:
+            continue
+        for side in ("r", "l"):
+            pts = p.points if side == "r" else tuple(mirror_point(pt) for pt in p.points)
+            rs = p.rollers if side == "r" else tuple(mirror_roller(r, mirror_name) for r in p.rollers)
+            out[(p.id, side)] = path_wraps([f"{a.name}->{b.name}" for a, b in zip(pts[:-1], pts[1:])], rs,
+                                           f"{p.key}_{side}")
+    return out
+
+
+def _wrap_cylinder_element(wo: WrapObject) -> ET.Element:
+    """A roller's ``<WrapCylinder>`` (orientation as OpenSim's body-fixed X-Y-Z Euler angles)."""
+    el = ET.Element("WrapCylinder", name=wo.name)
+    _text(el, "active", _flag(wo.active))
+    _text(el, "xyz_body_rotation", _nums(xyz_body_fixed_angles(np.asarray(wo.rotation, float))))
+    _text(el, "translation", _nums(wo.translation))
+    _text(el, "quadrant", wo.quadrant)
+    _text(el, "radius", _num(wo.dimensions[0]))
+    _text(el, "length", _num(wo.dimensions[1]))
+    return el
+
+
+def xyz_body_fixed_angles(R: np.ndarray) -> tuple[float, float, float]:
+    """Body-fixed X-Y-Z Euler angles [rad] of a rotation matrix (the inverse of
+    :func:`pamkin.osim.rotation_xyz_body_fixed`: R = Rx(a)·Ry(b)·Rz(c))."""
+    b = math.asin(max(-1.0, min(1.0, float(R[0, 2]))))
+    if abs(R[0, 2]) < 1 - 1e-12:
+        a = math.atan2(-R[1, 2], R[2, 2])
+        c = math.atan2(-R[0, 1], R[0, 0])
+    else:               # gimbal lock: c folded into a
+        a = math.atan2(R[2, 1], R[1, 1])
+        c = 0.0
+    return a, b, c
 
 
 def _point_element(pt: AnyPathPoint, name: str, skeleton: OsimModel) -> ET.Element:

@@ -24,7 +24,8 @@ import numpy as np
 from .paths import PathSet
 
 __all__ = ["PAM_AT", "Placement", "body_interval", "body_room", "body_side", "fixed_ends", "mount_segment", "pam_capsules",
-           "placement", "placements", "route_positions", "segment_margin", "segment_names", "segment_options"]
+           "placement", "placements", "rolled_segments", "route_positions", "segment_margin", "segment_names",
+           "segment_options"]
 
 #: The ends of its mount segment a PAM may be anchored at (``pam_at`` of a design's PAM).
 PAM_AT = ("origin", "insertion")
@@ -69,17 +70,18 @@ def mount_segment(room: np.ndarray) -> tuple[int, float]:
     return j, float(margin[j])
 
 
-def _cumulative(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _cumulative(pts: np.ndarray, lengths: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     seg = pts[:, 1:] - pts[:, :-1]
-    L = np.linalg.norm(seg, axis=2)                                  # (S, P-1)
+    L = np.linalg.norm(seg, axis=2) if lengths is None else lengths  # (S, P-1)
     return seg, L, np.concatenate([np.zeros((len(pts), 1)), np.cumsum(L, axis=1)], axis=1)
 
 
-def fixed_ends(pts: np.ndarray, j0: int) -> tuple[bool, bool]:
+def fixed_ends(pts: np.ndarray, j0: int, lengths: np.ndarray | None = None) -> tuple[bool, bool]:
     """Whether segment ``j0`` of the route ``pts`` (S, P, 3) has a fixed-length route before it (from the
     route's origin to its start) and after it (from its end to the insertion) over the S poses: the ends
-    a PAM on it can be anchored at with a constant tendon (origin end, insertion end)."""
-    _, _, cum = _cumulative(pts)
+    a PAM on it can be anchored at with a constant tendon (origin end, insertion end). ``lengths`` (S, P−1):
+    the segments' lengths where they are not straight (rollers, :meth:`pamkin.robot.PamRobot.segment_lengths`)."""
+    _, _, cum = _cumulative(pts, lengths)
     return (bool(np.ptp(cum[:, j0]) < FIXED_TOLERANCE),
             bool(np.ptp(cum[:, -1] - cum[:, j0 + 1]) < FIXED_TOLERANCE))
 
@@ -94,20 +96,21 @@ def body_side(pam_at: str | None, origin_fixed: bool, insertion_fixed: bool) -> 
     return "insertion" if insertion_fixed and not origin_fixed else "origin"
 
 
-def body_interval(pts: np.ndarray, j0: int, length: np.ndarray, side: str = "origin") -> tuple[np.ndarray, np.ndarray]:
+def body_interval(pts: np.ndarray, j0: int, length: np.ndarray, side: str = "origin",
+                  lengths: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Arc lengths (s0, s1) (S,) [m] along the route ``pts`` (S, P, 3) of a body of ``length`` (S,) at
-    the ``side`` end of segment ``j0`` (:func:`pam_capsules`)."""
+    the ``side`` end of segment ``j0`` (:func:`pam_capsules`; ``lengths`` as in :func:`fixed_ends`)."""
     if side not in PAM_AT:
         raise ValueError(f"side must be one of {PAM_AT}, is {side!r}")
-    _, _, cum = _cumulative(pts)
+    _, _, cum = _cumulative(pts, lengths)
     length = np.asarray(length, float)
     start = cum[:, j0] if side == "origin" else cum[:, j0 + 1] - length
     s0 = np.maximum(np.minimum(start, cum[:, -1] - length), 0.0)
     return s0, s0 + length
 
 
-def pam_capsules(pts: np.ndarray, j0: int, length: np.ndarray, side: str = "origin"
-                 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def pam_capsules(pts: np.ndarray, j0: int, length: np.ndarray, side: str = "origin",
+                 lengths: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """The PAM body along the route ``pts`` (S, P, 3): ``length`` (S,) [m] of it from the start of segment
     ``j0`` (``side`` "origin"), or ending at its end ("insertion") — moved along the route where it would run
     past the route's last point (a PAM does not hang off its last attachment) or before its first. One
@@ -116,9 +119,10 @@ def pam_capsules(pts: np.ndarray, j0: int, length: np.ndarray, side: str = "orig
 
     A PAM that fits on segment ``j0`` (:func:`mount_segment`) lies on it from that end; one that does not
     bends over the following (preceding) points, or, where the route ends first, over the points on the
-    other side of ``j0`` too."""
-    seg, L, cum = _cumulative(pts)
-    s0, s1 = body_interval(pts, j0, length, side)
+    other side of ``j0`` too. ``lengths`` as in :func:`fixed_ends` (a segment with a roller: the body is
+    drawn along its chord)."""
+    seg, L, cum = _cumulative(pts, lengths)
+    s0, s1 = body_interval(pts, j0, length, side, lengths)
     out = []
     for j in range(seg.shape[1]):
         lo, hi = np.maximum(s0, cum[:, j]), np.minimum(s1, cum[:, j + 1])
@@ -146,23 +150,39 @@ class Placement:
         return self.margin >= 0
 
 
-def placement(pts: np.ndarray, pam, pam_len: np.ndarray, fitting_length: float) -> Placement:
+def placement(pts: np.ndarray, pam, pam_len: np.ndarray, fitting_length: float,
+              lengths: np.ndarray | None = None) -> Placement:
     """:class:`Placement` of ``pam`` (a :class:`pamkin.design.Pam`) on its route ``pts`` (S, P, 3) at S poses
     with PAM lengths ``pam_len`` (S,) [m] — what ``pamkin audit``, the optimiser's PAM–PAM checks and the
     viewer put where: the design's segment (``pam_on``) where the body fits on it with a constant tendon
-    (:func:`segment_options`), else the segment that holds it best."""
+    (:func:`segment_options`), else the segment that holds it best. Segments with a roller never hold it;
+    ``lengths`` (S, P−1): the segments' lengths over their rollers (:func:`fixed_ends`)."""
     named = _named_segment(pam)
     if named is not None and named < pts.shape[1] - 1:
-        m = segment_margin(pts, named, pam.resting_length_m, pam_len, fitting_length)
-        ends = fixed_ends(pts, named)
+        m = segment_margin(pts, named, pam.resting_length_m, pam_len, fitting_length, lengths)
+        ends = fixed_ends(pts, named, lengths)
         if m >= 0 and any(ends):
             return Placement(named, m, body_side(pam.pam_at, *ends))
     seg_len = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=2)
-    j, margin = mount_segment(body_room(seg_len, pam.resting_length_m, pam_len, fitting_length))
+    room = body_room(seg_len, pam.resting_length_m, pam_len, fitting_length)
+    rolled = rolled_segments(pam)
+    if rolled:
+        room = room.copy()
+        room[:, rolled] = -np.inf
+    j, margin = mount_segment(room)
     if margin < 0:
         return Placement(j, margin, "origin")
-    margin = segment_margin(pts, j, pam.resting_length_m, pam_len, fitting_length)
-    return Placement(j, margin, body_side(pam.pam_at, *fixed_ends(pts, j)) if margin >= 0 else "origin")
+    margin = segment_margin(pts, j, pam.resting_length_m, pam_len, fitting_length, lengths)
+    return Placement(j, margin, body_side(pam.pam_at, *fixed_ends(pts, j, lengths)) if margin >= 0 else "origin")
+
+
+def rolled_segments(pam) -> list[int]:
+    """Indices of the route segments of ``pam`` that have a roller (:mod:`pamkin.rollers`)."""
+    rollers = getattr(pam, "rollers", ())
+    if not rollers:
+        return []
+    names = segment_names(pam)
+    return sorted(names.index(r.segment) for r in rollers)
 
 
 def _named_segment(pam) -> int | None:
@@ -174,27 +194,31 @@ def _named_segment(pam) -> int | None:
     return names.index(name) if name in names else None
 
 
-def segment_options(pts: np.ndarray, pam, pam_len: np.ndarray, fitting_length: float) -> list[tuple[int, str]]:
+def segment_options(pts: np.ndarray, pam, pam_len: np.ndarray, fitting_length: float,
+                    lengths: np.ndarray | None = None) -> list[tuple[int, str]]:
     """Every ``(segment, end)`` a PAM body can sit at on its route ``pts`` (S, P, 3) over the S poses: the
-    segments it fits on (:func:`segment_margin` >= 0) with each end whose route on the tendon's other side
-    has a fixed length (:func:`fixed_ends`). Empty where the PAM fits on no segment."""
+    segments without a roller it fits on (:func:`segment_margin` >= 0) with each end whose route on the
+    tendon's other side has a fixed length (:func:`fixed_ends`; ``lengths`` as there). Empty where the PAM
+    fits on no segment."""
     out = []
+    rolled = rolled_segments(pam)
     for j in range(pts.shape[1] - 1):
-        if segment_margin(pts, j, pam.resting_length_m, pam_len, fitting_length) >= 0:
-            out += [(j, side) for side, ok in zip(PAM_AT, fixed_ends(pts, j)) if ok]
+        if j not in rolled and segment_margin(pts, j, pam.resting_length_m, pam_len, fitting_length, lengths) >= 0:
+            out += [(j, side) for side, ok in zip(PAM_AT, fixed_ends(pts, j, lengths)) if ok]
     return out
 
 
-def segment_margin(pts: np.ndarray, j: int, resting_length: float, pam_len: np.ndarray, fitting_length: float) -> float:
+def segment_margin(pts: np.ndarray, j: int, resting_length: float, pam_len: np.ndarray, fitting_length: float,
+                   lengths: np.ndarray | None = None) -> float:
     """Least room [m] the PAM body leaves on segment ``j`` of the route ``pts`` (S, P, 3) over the S poses
     (:func:`body_room`; negative: it does not fit). Where the route changes length on both sides of the
     segment (:func:`fixed_ends`) the PAM floats between two tendons of fixed length, so its start along the
     route is one constant for every pose — after the segment's latest start and before its earliest end
-    less the body — and the margin is the smaller of the two."""
-    _, L, cum = _cumulative(pts)
+    less the body — and the margin is the smaller of the two. ``lengths`` as in :func:`fixed_ends`."""
+    _, L, cum = _cumulative(pts, lengths)
     room = body_room(L[:, j], resting_length, pam_len, fitting_length)
     margin = float(np.min(room))
-    if margin >= 0 and not any(fixed_ends(pts, j)):
+    if margin >= 0 and not any(fixed_ends(pts, j, lengths)):
         body = L[:, j] - room
         margin = min(margin, float(np.min(cum[:, j + 1] - body) - np.max(cum[:, j])))
     return margin
@@ -216,5 +240,7 @@ def placements(design, model, q: np.ndarray) -> list[tuple[Placement, np.ndarray
     out = []
     for k, pam in enumerate(design.pams):
         pts = route_positions(right.paths, ks, k)
-        out.append((placement(pts, pam, st.pam_lengths[:, k], design.fitting_length_m), pts, st.pam_lengths[:, k]))
+        lengths = right.segment_lengths(ks, k) if pam.rollers else None
+        out.append((placement(pts, pam, st.pam_lengths[:, k], design.fitting_length_m, lengths), pts,
+                    st.pam_lengths[:, k]))
     return out

@@ -47,6 +47,7 @@ import numpy as np
 from ._resources import DEFAULT_GEOMETRY as _DEFAULT_GEOMETRY
 from .errors import ConfigurationError, PamkinError, RangeWarning
 from .pam_body import body_interval, placements, route_positions
+from .rollers import roller_frame
 
 __all__ = ["ColorScale", "StaticWindow", "View", "build_view", "screenshot", "simple_bone_meshes"]
 
@@ -59,6 +60,8 @@ TENDON_RADIUS = 0.0015
 BONE_COLOR = 0xE6DCC3
 ROBOT_BONE_COLOR = 0xB4C3D2
 TENDON_COLOR = 0x404040
+#: Colour of the rollers (cable guides, :mod:`pamkin.rollers`).
+ROLLER_COLOR = 0x9A9A9A
 #: Colour of a PAM outside its strain range (stretched beyond Festo's pretension limit or
 #: contracted beyond kmax).
 DEAD_ZONE_COLOR = (1.0, 0.0, 1.0)
@@ -468,9 +471,18 @@ def build_view(human, robot, *, meshes: dict | None = None, layout: str = "side"
 
     # robot PAMs: thin route (fittings + tendon), thick PAM where the audit puts it (pamkin.pam_body)
     fit = robot.design.fitting_length_m
-    routes = [robot.paths.polylines(rk, f) for f in range(F)]
+    routes = robot.polylines(rk)
     places = pam_placements(robot)
     for k, name in enumerate(robot.names):
+        for i, r in enumerate(robot.rollers[k]):          # rollers: grey cylinders fixed in their bones
+            b = robot.model.kinematics.frames.index(r.body)
+            Rr = roller_frame(r)[:, [0, 2, 1]] * np.array([1.0, 1.0, -1.0])   # meshcat's cylinder axis is y
+            T = np.tile(np.eye(4), (F, 1, 1))
+            T[:, :3, :3] = np.einsum("fij,jk->fik", rk.body_R[:, b], Rr)
+            T[:, :3, 3] = rk.body_p[:, b] + np.einsum("fij,j->fi", rk.body_R[:, b], np.asarray(r.centre))
+            node = f"pamkin/robot/pams/{name}/roller{i + 1}"
+            vis[node].set_object(g.Cylinder(r.length_m, r.radius_m), g.MeshLambertMaterial(color=ROLLER_COLOR))
+            _place(vis, anim, node, T)
         n_seg = max(len(routes[f][k]) for f in range(F)) - 1
         corners.append(np.concatenate([routes[f][k] for f in range(F)]) + robot_origin)
         node = f"pamkin/robot/pams/{name}"

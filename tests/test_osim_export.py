@@ -26,6 +26,7 @@ from pamkin.errors import DataFileError, RangeWarning
 from pamkin.functions import Constant, LinearFunction, MultiplierFunction, PolynomialFunction, SimmSpline
 from pamkin.osim import ConditionalPathPoint, MovingPathPoint, PathPoint, load_osim_file
 from pamkin.osim_export import OsimExportError, coordinate_range, design_to_osim
+from pamkin.rollers import Roller
 from pamkin.rom import load_rom
 from pamkin.urdf_build import GAIT2392_DATA, load_model_data
 
@@ -118,6 +119,14 @@ def _all_functions_design(design):
     cond = ConditionalPathPoint("wrap", "tibia_r", (0.03, -0.38, 0.0), coordinate="ankle_angle_r",
                                 range=(-0.2, 0.1))
     design = design.replace_pam(dataclasses.replace(soleus, points=(soleus.points[0], cond, odd)))
+    # rollers (WrapCylinders): one on biceps femoris long head (wraps at about half the poses), two on
+    # gracilis (OpenSim's passes over several wraps; one wraps at nearly every pose)
+    bflh, gracilis = design.pam(4), design.pam(9)
+    design = design.replace_pam(dataclasses.replace(bflh, rollers=(
+        Roller("p1->p2", "femur_r", (-0.06, -0.1, 0.0), (0.0, 0.0, 1.0), (-1.0, 0.0, 0.0), 0.008),)))
+    design = design.replace_pam(dataclasses.replace(gracilis, rollers=(
+        Roller("p1->p2", "femur_r", (0.0, -0.1, -0.03), (1.0, 0.0, 0.0), (0.0, 0.0, -1.0), 0.008),
+        Roller("p3->p4", "femur_r", (0.0, -0.42, -0.04), (1.0, 0.0, 0.0), (0.0, 0.0, -1.0), 0.01, 0.05))))
     return dataclasses.replace(design, name="all_functions")
 
 
@@ -139,7 +148,7 @@ def test_opensim_path_lengths_match_pamkin(tmp_path, skeleton, robot_model):
     results = opensim_lengths(files, names, q, tmp_path)
     # the modified routes really differ, and the conditional point is both in and out of the path
     changed = ~np.isclose(results[0][0], results[1][0], rtol=0, atol=1e-6).all(axis=0)
-    assert sorted(np.flatnonzero(changed)) == [10, 11, 37, 38]   # pam11, pam12 on both sides
+    assert sorted(np.flatnonzero(changed)) == [3, 8, 10, 11, 30, 35, 37, 38]   # pam04, 09, 11, 12, both sides
     ankle = q[:, names.index("ankle_angle_r")]
     assert ((ankle > -0.2) & (ankle < 0.1)).any() and ((ankle < -0.2) | (ankle > 0.1)).any()
     for design, (L_os, meta) in zip(designs, results):
