@@ -32,6 +32,7 @@ import numpy as np
 
 from pamkin.errors import RangeWarning
 from pamkin.paths import PathSet
+from pamkin.rollers import roller_pieces
 
 #: Centre line of every segment at least this far outside every bone at the bone-check poses [m]
 #: (the audit's limit is 2 mm *into* bone; the difference covers poses between the samples).
@@ -159,6 +160,11 @@ class BoneCuts:
         self.n_point_rows = 0          # the first rows of measure(with_rows=True) are the (hard) point rows
         self.radius = 0.0
         self.mount = 0
+        #: segments not sampled
+        self.skip: set[int] = set()
+        #: segment index -> its roller (pamkin.rollers.Roller): the straight pieces around it are sampled
+        self.rollers: dict = {}
+        self._frames = list(kin.frames)
 
     def set_obstacles(self, bodies: list, radius: float, mount: int) -> None:
         """Other PAMs' bodies (:class:`optimize.pam_clearance.Body` at these poses) to keep clear of;
@@ -171,17 +177,52 @@ class BoneCuts:
         return self.base + np.einsum("spij,pj->spi", self.R, loc)
 
     def _samples(self, X: np.ndarray):
-        """Segment samples: (S, K, 3) positions, segment index (K,), parameter t (K,)."""
-        segs, ts = [], []
+        """Segment samples: (S, K, 3) positions, segment index (K,), parameter t (K,). Each sample is
+        ``wa·X[a] + wb·X[a+1] + const`` (kept in ``_wa``, ``_wb`` (K,) and ``_const`` (S, K, 3)): on a straight
+        segment (1 − t, t, 0); on a segment with a roller (``rollers``) the samples lie on its straight pieces
+        before and after the roller, X[a] → T1 (1 − t, 0, t·T1) and T2 → X[a+1] (0, t, (1 − t)·T2), the
+        tangent points (fixed in the roller's bone) from :func:`pamkin.rollers.roller_pieces`."""
+        segs, ts, was, wbs, consts, parts = [], [], [], [], [], []
         for a in range(self.n_points - 1):
+            if a in self.skip:
+                continue
+            if a in self.rollers:
+                rol = self.rollers[a]
+                b = self._frames.index(rol.body)
+                T1, T2, _, _ = roller_pieces(X[:, a], X[:, a + 1], self.state.body_R[:, b], self.state.body_p[:, b],
+                                             rol, single=len(self.rollers) == 1)
+                for first, T in ((True, T1), (False, T2)):
+                    far = X[:, a] if first else X[:, a + 1]
+                    length = float(np.max(np.linalg.norm(T - far, axis=1)))
+                    t = np.linspace(0.0, 1.0, max(3, int(np.ceil(length / STEP)) + 1))
+                    segs.append(np.full(len(t), a))
+                    ts.append(t)
+                    if first:
+                        was.append(1 - t), wbs.append(np.zeros(len(t)))
+                        consts.append(t[None, :, None] * T[:, None, :])
+                        parts.append(X[:, a, None] + t[None, :, None] * (T - X[:, a])[:, None, :])
+                    else:
+                        was.append(np.zeros(len(t))), wbs.append(t)
+                        consts.append((1 - t)[None, :, None] * T[:, None, :])
+                        parts.append(T[:, None, :] + t[None, :, None] * (X[:, a + 1] - T)[:, None, :])
+                continue
             length = float(np.max(np.linalg.norm(X[:, a + 1] - X[:, a], axis=1)))
             t = np.linspace(0.0, 1.0, max(3, int(np.ceil(length / STEP)) + 1))
             segs.append(np.full(len(t), a))
             ts.append(t)
+            was.append(1 - t), wbs.append(t)
+            consts.append(np.zeros((self.S, len(t), 3)))
+            # (the same floating-point form as before rollers existed: runs without rollers reproduce to the bit)
+            parts.append(X[:, a, None] + t[None, :, None] * (X[:, a + 1] - X[:, a])[:, None, :])
+        if not segs:                       # every segment skipped
+            self._t, self._wa, self._wb = np.zeros(0), np.zeros(0), np.zeros(0)
+            self._const = np.zeros((self.S, 0, 3))
+            return np.zeros((self.S, 0, 3)), np.zeros(0, dtype=int), np.zeros(0)
         seg, t = np.concatenate(segs), np.concatenate(ts)
         self._t = t
-        P = X[:, seg] + t[None, :, None] * (X[:, seg + 1] - X[:, seg])
-        return P, seg, t
+        self._wa, self._wb = np.concatenate(was), np.concatenate(wbs)
+        self._const = np.concatenate(consts, axis=1)
+        return np.concatenate(parts, axis=1), seg, t
 
     def _nearest(self, P: np.ndarray):
         from types import SimpleNamespace  # noqa: PLC0415
@@ -201,12 +242,19 @@ class BoneCuts:
         """Exact clearance of the route with locations ``loc`` (P, 3); optionally also the rows."""
         X = self.world(loc)
         P, seg, t = self._samples(X)
-        d, near, c, n = self._nearest(P)
+        if P.shape[1]:
+            d, near, c, n = self._nearest(P)
+        else:
+            d, near = np.full((self.S, 0), np.inf), np.zeros((self.S, 0), dtype=int)
+            c, n = np.zeros((self.S, 0, 3)), np.zeros((self.S, 0, 3))
         depth = np.full(self.n_points - 1, -np.inf)
         bone = [None] * (self.n_points - 1)
         dmin = d.min(axis=0)                                   # (K,)
         for a in range(self.n_points - 1):
             k = np.flatnonzero(seg == a)
+            if not len(k):                 # a skipped segment
+                depth[a] = -ACTIVATION
+                continue
             j = k[np.argmin(dmin[k])]
             depth[a] = -dmin[j] if np.isfinite(dmin[j]) else -ACTIVATION
             if depth[a] > 0:
@@ -248,20 +296,19 @@ class BoneCuts:
         if with_rows and cand:
             cand.sort(key=lambda x: x[0])
             used: dict = {}
-            t_all = self._t
             for c_, s_, k, Q, need in cand:
                 if len(W) >= PAM_ROWS:
                     break
                 if used.get(k, 0) >= PER_SAMPLE:
                     continue
                 used[k] = used.get(k, 0) + 1
-                a, tt = int(seg[k]), float(t_all[k])
+                a, wa, wb = int(seg[k]), float(self._wa[k]), float(self._wb[k])
                 diff = P[s_, k] - Q
                 nn = diff / max(np.linalg.norm(diff), 1e-12)
                 w = np.zeros(nz)
-                w[3 * a:3 * a + 3] += (1 - tt) * (self.R[s_, a].T @ nn)
-                w[3 * a + 3:3 * a + 6] += tt * (self.R[s_, a + 1].T @ nn)
-                base = (1 - tt) * self.base[s_, a] + tt * self.base[s_, a + 1]
+                w[3 * a:3 * a + 3] += wa * (self.R[s_, a].T @ nn)
+                w[3 * a + 3:3 * a + 6] += wb * (self.R[s_, a + 1].T @ nn)
+                base = wa * self.base[s_, a] + wb * self.base[s_, a + 1] + self._const[s_, k]
                 W.append(PAM_WEIGHT * w)               # a weaker row: bone clearance comes first
                 w0.append(PAM_WEIGHT * float(nn @ base - nn @ Q - need))
         if not W:
@@ -293,11 +340,11 @@ class BoneCuts:
                     continue
                 used[k] += 1
                 room -= 1
-                a, tt, nn = int(seg[k]), float(t[k]), n[s_, k]
+                a, wa, wb, nn = int(seg[k]), float(self._wa[k]), float(self._wb[k]), n[s_, k]
                 w = np.zeros(nz)
-                w[3 * a:3 * a + 3] += (1 - tt) * (self.R[s_, a].T @ nn)
-                w[3 * a + 3:3 * a + 6] += tt * (self.R[s_, a + 1].T @ nn)
-                base = (1 - tt) * self.base[s_, a] + tt * self.base[s_, a + 1]
+                w[3 * a:3 * a + 3] += wa * (self.R[s_, a].T @ nn)
+                w[3 * a + 3:3 * a + 6] += wb * (self.R[s_, a + 1].T @ nn)
+                base = wa * self.base[s_, a] + wb * self.base[s_, a + 1] + self._const[s_, k]
                 W.append(w)
                 w0.append(float(nn @ base - nn @ c[s_, k] - SEGMENT_CLEARANCE))
         if not W:

@@ -77,6 +77,10 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      their bone (smooth bone-distance splines, optimize.bracket)
     pam_clearance = false        # (v2, with bone_mesh) second pass: routes that hit another PAM's body are
                                  #      solved again with the first-pass bodies as obstacles
+    rollers = false              # (v2, with bone_mesh) last stage: an actuator failing an audit fit limit on the
+                                 #      validation poses gets rollers (cable guides on bone, pamkin.rollers) where
+                                 #      its fit without the bone rows goes into bone, kept where they lower its
+                                 #      validation error and the route is clear (optimize.rollers)
     max_units = 60               # (v2) PAM units of the whole robot (both sides; 0: no limit): the diameter
                                  #      and parallel count of every actuator are chosen together, before the
                                  #      bone-mesh rounds, for the least summed score within this budget
@@ -137,7 +141,7 @@ _SECTIONS = {
                "one_segment": "one_segment", "one_segment_actuators": "one_segment_actuators", "mount": "mount", "mount_cost": "mount_cost", "mount_failing": "mount_failing", "mount_blocks": "mount_blocks", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
                "bone_seed_start": "bone_seed_start", "bracket_fit": "bracket_fit",
                "max_units": "max_units", "walking_min": "walking_min",
-               "pam_clearance": "pam_clearance", "resize_above": "resize_above", "block_refit_above": "block_refit_above",
+               "pam_clearance": "pam_clearance", "rollers": "rollers", "resize_above": "resize_above", "block_refit_above": "block_refit_above",
                "max_mass_kg": "max_mass_kg", "pam_ends": "pam_ends", "resize_on": "resize_on"},
 }
 
@@ -207,6 +211,7 @@ class RunConfig:
     bone_seed_start: bool = True
     bracket_fit: bool = False
     pam_clearance: bool = False
+    rollers: bool = False
     max_units: int = 60
     walking_min: float = 0.9
     resize_above: float = 1.0
@@ -281,6 +286,8 @@ class RunConfig:
             raise bad("workers", f"must be >= 1, got {self.workers}")
         if self.pam_clearance and not self.bone_mesh:
             raise bad("limits.pam_clearance", "needs limits.bone_mesh = true (the PAM-PAM pass reuses its rounds)")
+        if self.rollers and not self.bone_mesh:
+            raise bad("limits.rollers", "needs limits.bone_mesh = true (rollers are placed and checked on the bone meshes)")
         if self.max_units < 0:
             raise bad("limits.max_units", f"must be >= 0 (0: no limit), got {self.max_units}")
         if not 0 <= self.walking_min <= 1:

@@ -92,8 +92,11 @@ class ActuatorProblem:
 
     def __init__(self, data: ActuatorData, cfg: RunConfig, diameter: int,
                  seed_points: list[np.ndarray], regions: list[list[float]], relax: frozenset = frozenset(),
-                 bracket: dict | None = None, mount_segment: int | None = None) -> None:
+                 bracket: dict | None = None, mount_segment: int | None = None, rollers: list | None = None) -> None:
         self.data, self.cfg, self.d = data, cfg, diameter
+        #: rollers on route segments (optimize.roller_model.RollerData): the segment's length over the
+        #: roller, its moment arms, no bone-capsule rows there
+        self.rollers = list(rollers or [])
         self.relax = relax           # constraint groups left out ("one_segment"): the run reports them
         self.mount: int | None = None  # the segment the PAM sits on (one_segment)
         self.npar = ca.SX.sym("n_parallel")      # a parameter: one solver serves 1..3 parallel PAMs
@@ -127,6 +130,14 @@ class ActuatorProblem:
                 X.append(_dm(data.p[:, b].T) + rot)
         self.X = X
         self.L = path_length(X, xp=ca)                            # (1, S)
+        rolled = {}
+        for rd in self.rollers:
+            from .roller_model import segment_terms  # noqa: PLC0415
+
+            j = rd.segment
+            Lseg, dseg = segment_terms(X[j], X[j + 1], rd)
+            self.L = self.L - _norm_rows(X[j + 1] - X[j]) + Lseg
+            rolled[j] = dseg
         #: transmission (pamkin.design): the route moves k times the PAM's stroke at 1/k of its force
         self.k = int(data.pam.transmission)
         pam_len = pam_length(self.L, self.t, self.k, data.fitting_length)
@@ -147,6 +158,9 @@ class ActuatorProblem:
                 else:
                     V.append(point_velocity(_dm(data.omega[c][:, b].T), _dm(data.tau[c][:, b].T), x, xp=ca))
             r = path_moment_arm(X, V, xp=ca)
+            for j, dseg in rolled.items():       # the roller's segment: its own −∂L/∂q for the straight one's
+                d = X[j + 1] - X[j]
+                r = r - ca.sum1(d * (V[j] - V[j + 1])) / _norm_rows(d) - dseg(V[j], V[j + 1], c)
             tau_r = self.force * r
             cols = list(map(int, rows))
             tr = tau_r[0, cols] if tau_r.shape[0] == 1 else tau_r[cols]
@@ -218,6 +232,8 @@ class ActuatorProblem:
             ab2 = ca.sum1(AB * AB)
             need = cap.radius + radius + CLEARANCE_MARGIN
             for a in range(len(X) - 1):
+                if a in rolled:              # the roller keeps this segment off the bone
+                    continue
                 xa = self._seed_world(a)
                 xb = self._seed_world(a + 1)
                 for tpar in CLEARANCE_T:
@@ -287,7 +303,8 @@ class ActuatorProblem:
         """The same problem (data, diameter, route box, relaxed groups, brackets) with the PAM on route
         segment ``segment`` at every constraint sample (the one-segment rows)."""
         return ActuatorProblem(self.data, self.cfg, self.d, self.seed, self.regions,
-                               self.relax - {"one_segment"}, self.bracket or None, mount_segment=segment)
+                               self.relax - {"one_segment"}, self.bracket or None, mount_segment=segment,
+                               rollers=self.rollers)
 
     def one_segment_rows(self, segment: int):
         """The PAM on route segment ``segment`` at every constraint sample, as two (S_c, 1) CasADi rows
@@ -305,6 +322,12 @@ class ActuatorProblem:
         b = self.data.body_of_point[i]
         base = self.data.moving_x[i] if i in self.moving else self.data.p[:, b]
         return base + self.data.R[:, b] @ self.seed[i]
+
+    def lengths(self, z: np.ndarray) -> np.ndarray:
+        """(S,) route lengths [m] at the decision vector ``z`` (every sample)."""
+        if getattr(self, "_length_fn", None) is None:
+            self._length_fn = ca.Function("L", [self.z], [self.L])
+        return np.asarray(self._length_fn(z)).ravel()
 
     def initial_guess(self, points: list[np.ndarray], rest: float | None, tendon: float | None) -> np.ndarray:
         """Start vector: given points; l0 and t from the seed or sized so ε spans [0, 0.8·kmax]."""

@@ -643,6 +643,161 @@ def clearance_pass(seed: Design, results: list[ActuatorResult], cfg: RunConfig, 
 FIT_COST_FACTOR = 3.0
 
 
+def _roller_actuator(k: int) -> ActuatorResult:
+    """The roller stage of one actuator (in a worker; :mod:`optimize.rollers`): the bracket-only fit from its
+    result, rollers where that fit's segments go into bone, solved with them and checked exactly; the result
+    with rollers where it lowers the validation error, else the result as it was (its log says why)."""
+    from pamkin.pam_body import placement, route_positions  # noqa: PLC0415
+    from pamkin.robot import PamRobot  # noqa: PLC0415
+
+    from .bone_cuts import BoneCuts, bone_check_poses, bone_stage  # noqa: PLC0415
+    from .problem import FEASIBILITY_TOL, ActuatorProblem  # noqa: PLC0415
+    from .rollers import DEPTH_LIMIT, MAX_DEPTH, MIN_GAIN, PLACE_ROUNDS, depths, place, roller_data  # noqa: PLC0415
+    from .validation import validation_error  # noqa: PLC0415
+
+    t0 = time.perf_counter()
+    cfg: RunConfig = _STATE["cfg"]
+    human, bones, design = _STATE["human"], _STATE["bones"], _STATE["seed_design"]
+    r: ActuatorResult = _STATE["first"][k]
+    data0 = _STATE["data"][k]
+    data = dataclasses.replace(data0, pam=dataclasses.replace(data0.pam, transmission=r.pam.transmission))
+    seed, regions = _route_box(data0.pam, cfg)
+    relax = frozenset(r.relaxed)
+    q_bone, n_right = bone_check_poses(human, _STATE["rom"], data0.pam, cfg.seed, crossed=data.crossed)
+    q_val, T_val = _validation_set()
+    crossed = list(data.crossed or [])
+
+    def error(pam: Pam) -> tuple[float, float]:
+        return validation_error(pam, human, q_val, T_val, crossed, design)
+
+    lines = [f"  roller stage of actuator {r.id} {r.name}:"]
+
+    def keep(why: str) -> ActuatorResult:
+        out = dataclasses.replace(r, bone=dict(r.bone, log=list(r.bone.get("log", [])) + lines + [f"    kept "
+                                  f"without rollers: {why}"]), seconds=r.seconds + time.perf_counter() - t0)
+        return out
+
+    nr0, w0 = error(r.pam)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RangeWarning)
+        robot = PamRobot(Design("mount", (r.pam,), design.pressure_Pa, design.force_model,
+                                design.fitting_length_m, design.rom), human, sides=("r",))
+        ks = human.kinematics.forward(q_bone, warn_range=False)
+        pl = placement(route_positions(robot.paths, ks, 0), r.pam, robot.evaluate(q_bone).pam_lengths[:, 0],
+                       design.fitting_length_m)
+    mount = pl.segment if pl.on_one_segment else None
+    bracket = _bracket(data0.pam, seed, regions, cfg)
+    d, n = r.pam.diameter_mm, r.n_parallel
+    prob = ActuatorProblem(data, cfg, d, seed, regions, relax, bracket, mount)
+    sol0 = prob.solve(r.z, n)
+    lines.append(f"    bracket-only fit: {sol0.status}, objective {r.objective if r.objective is not None else float('nan'):.4g}"
+                 f" -> {sol0.objective:.4g} ({sol0.seconds:.1f} s)")
+    if not sol0.success:
+        return keep("the bracket-only fit failed")
+    pam_fit = solution_pam(data.pam, prob.finalize(sol0))
+    dep = depths(pam_fit, human, bones, q_bone, design, n_right)
+    names = [f"{a.name}->{b.name}" for a, b in zip(pam_fit.points[:-1], pam_fit.points[1:])]
+    rollers: dict[int, object] = {}
+    deep = [j for j, depth in enumerate(dep.segment_depth) if depth > MAX_DEPTH and j != mount]
+    lines.append("    segments into bone: " + (", ".join(f"{names[j]} {1e3 * dep.segment_depth[j]:.1f} mm"
+                 for j in range(len(names)) if dep.segment_depth[j] > DEPTH_LIMIT) or "none"))
+    if deep:
+        return keep(f"{', '.join(names[j] for j in deep)} deeper than {1e3 * MAX_DEPTH:g} mm into bone (a roller "
+                    "would move the cable too far from the fit's line)")
+    for j, depth in enumerate(dep.segment_depth):
+        if depth > DEPTH_LIMIT and j != mount and dep.deepest[j] is not None:
+            rol = place(bones, human, q_bone, pam_fit, j, dep.deepest[j])
+            if rol is not None:
+                rollers[j] = rol
+    if not rollers:
+        return keep("no segment of the bracket-only fit goes into bone where a roller can go")
+    cuts = BoneCuts(data0.pam, human, bones, q_bone, n_right)
+    z = sol0.z
+    L_prev = prob.lengths(z)
+    found = None
+    for rnd in range(PLACE_ROUNDS):
+        rd = [roller_data(data, human, rol, j) for j, rol in sorted(rollers.items())]
+        prob1 = ActuatorProblem(data, cfg, d, seed, regions, relax, bracket, mount, rollers=rd)
+        z0 = z.copy()
+        L_new = prob1.lengths(z0)
+        z0[-1] = max(z0[-1] + float(np.mean(L_new - L_prev)), 0.0)   # the PAM as long as before on average
+        sol1 = prob1.solve(z0, n)
+        where = ", ".join(names[j] for j in sorted(rollers))
+        if sol1.status in CAPPED_STATUSES and max(sol1.violations.values(), default=0.0) <= FEASIBILITY_TOL:
+            sol1.success = True     # the roller's kinks slow IPOPT's convergence: a feasible capped point serves
+        if not sol1.success:
+            lines.append(f"    with rollers on {where}, round {rnd + 1}: {sol1.status}")
+            break
+        # the bone-mesh rounds: points, segments and the straight pieces around the rollers
+        cuts.rollers = dict(rollers)
+        sol1, _, _ = bone_stage(prob1, sol1, cuts, cfg.bone_rounds)
+        z, L_prev = sol1.z, prob1.lengths(sol1.z)
+        pam1 = dataclasses.replace(solution_pam(data.pam, prob1.finalize(sol1)),
+                                   rollers=tuple(rol for _, rol in sorted(rollers.items())))
+        dep1 = depths(pam1, human, bones, q_bone, design, n_right)
+        lines.append(f"    with rollers on {where}, round {rnd + 1}: objective {sol1.objective:.4g}, deepest piece "
+                     f"{1e3 * dep1.segment_depth.max():.1f} mm, rollers "
+                     f"{', '.join(f'{1e3 * x:.1f}' for x in dep1.roller_bone)} mm off bone")
+        if dep1.clear():
+            found = (pam1, prob1, sol1)
+            break
+        for j, depth in enumerate(dep1.segment_depth):     # move a roller out, or add one, where too deep
+            if depth <= DEPTH_LIMIT or j == mount:
+                continue
+            if j in rollers:
+                rol = rollers[j]
+                shift = 0.5 * depth + 0.001
+                rollers[j] = dataclasses.replace(rol, centre=tuple(float(c + shift * s_) for c, s_ in
+                                                                   zip(rol.centre, rol.side)))
+            elif dep1.deepest[j] is not None:
+                rol = place(bones, human, q_bone, pam1, j, dep1.deepest[j])
+                if rol is not None:
+                    rollers[j] = rol
+    if found is None:
+        return keep("no clear route with rollers")
+    pam1, prob1, sol1 = found
+    nr1, w1 = error(pam1)
+    lines.append(f"    validation NRMSE / worst {nr0:.3f} / {w0:.3f} -> {nr1:.3f} / {w1:.3f} with rollers")
+    if not nr1 + w1 < nr0 + w0 - MIN_GAIN:
+        return keep(f"the rollers gain less than {MIN_GAIN} in validation NRMSE + worst")
+    out = _result(data.pam, data, prob1, sol1, r.attempts + [{
+        "diameter_mm": d, "n_parallel": n, "start": "roller stage", "status": sol1.status,
+        "objective": sol1.objective, "feasible": bool(sol1.success), "seconds": round(time.perf_counter() - t0, 3),
+        "relaxed": sorted(relax)}], t0 - r.seconds,
+        dict(r.bone, clear=True, log=list(r.bone.get("log", [])) + lines + ["    kept with rollers"]), r.mount)
+    out.pam = dataclasses.replace(out.pam, rollers=pam1.rollers)
+    out.skipped, out.warm = r.skipped, r.warm
+    return out
+
+
+def roller_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr) -> list[ActuatorResult]:
+    """The roller stage (:mod:`optimize.rollers`) for every actuator whose result fails the audit's fit limits
+    (primary NRMSE or worst coordinate error) on the run's validation poses."""
+    from pamkin.audit import load_limits  # noqa: PLC0415
+
+    from .validation import validation_error  # noqa: PLC0415
+
+    thr = load_limits()["thresholds"]
+    q, T = _validation_set()
+    todo = []
+    for k, r in enumerate(results):
+        if r.z is None or not r.success:
+            continue
+        nr, w = validation_error(r.pam, _STATE["human"], q, T, list(_STATE["data"][k].crossed or []),
+                                 _STATE["seed_design"])
+        if nr > thr["nrmse_good"] or w > thr["worst_coordinate_error_good"]:
+            todo.append(k)
+    if not todo:
+        return results
+    print(f"rollers: {len(todo)} actuators fail a fit limit on the validation poses: trying rollers", file=stream,
+          flush=True)
+    _STATE.update(first={k: results[k] for k in todo})
+    out = list(results)
+    for r in _map(_roller_actuator, todo, cfg, stream):
+        out[next(k for k in todo if results[k].id == r.id)] = r
+    return out
+
+
 def mount_lines(results: list[ActuatorResult], cfg: RunConfig) -> list[str]:
     """The one-segment stage's outcome (:mod:`optimize.mount`): how many PAMs sit on one straight segment,
     then one line per PAM that does not, naming why with its numbers."""
@@ -1209,7 +1364,8 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, o
         warm = load_design(Path(cfg.warm_start) / "design.yaml", **kw)
         for p in warm.pams:
             if p.id in {q.id for q in seed.pams}:
-                seed = seed.replace_pam(p)
+                # a warm route's rollers are not kept: the roller stage (limits.rollers) places them again
+                seed = seed.replace_pam(dataclasses.replace(p, rollers=()))
                 warm_ids.add(p.id)
     _STATE["warm_ids"] = warm_ids      # these actuators try their warm diameter and count first
     rolled = [p.id for p in seed.pams if p.rollers]
@@ -1232,6 +1388,8 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, o
             results = solve_all(seed, cfg, stream)
             if cfg.bone_mesh and cfg.pam_clearance:
                 results = clearance_pass(seed, results, cfg, stream)
+            if cfg.bone_mesh and cfg.rollers:
+                results = roller_pass(results, cfg, stream)
     finally:
         _STATE["warm_ids"] = set()     # a later solve_all in this process (library use) starts cold
     log.extend((_STATE["walking"] or {}).get("log", []))

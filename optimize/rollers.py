@@ -1,0 +1,185 @@
+"""The roller stage: cable guides where a straight route cannot clear bone and still fit.
+
+The bone-mesh rounds keep every route segment out of bone at every bone-check pose; a straight segment
+can do that only by moving away from the bone at every pose, and for some PAMs that costs most of their
+fit (the segment goes through the femur or tibia only near the range's edge, or the human's own line runs
+inside the bone). For an actuator whose result fails the audit's fit limits on the run's validation poses,
+this stage
+
+1. solves its problem again from its result without the bone-mesh rows (its attachment points stay on
+   their bones within the bracket band; the segments may enter bone): the *bracket-only fit*;
+2. puts a roller (:mod:`pamkin.rollers`) on each segment of that fit that goes deeper than the audit's
+   limit into a bone at the bone-check poses (not on the PAM's own segment): fixed in that bone, a gap
+   off its surface at the deepest penetration, its axis across the segment, the cable on its outer side;
+   An actuator with such a segment deeper than :data:`MAX_DEPTH` is left as it was;
+3. solves with the rollers in the problem (:mod:`optimize.roller_model`), then the bone-mesh rounds
+   (:func:`optimize.bone_cuts.bone_stage`; the straight pieces before and after each roller take the
+   segment's rows), and checks the result exactly (OpenSim's wrapping, the bone meshes, every bone-check
+   pose): every straight piece within the limit, every attachment point and roller outside its bone and
+   within the bracket distance; a piece still too deep moves its roller out by half the depth (up to
+   :data:`PLACE_ROUNDS` rounds);
+4. keeps the rollers where the validation error (primary NRMSE + worst coordinate error) falls by more than
+   :data:`MIN_GAIN`; otherwise the result stays as it was.
+
+Everything is measured on the optimiser's own poses (bone-check poses, validation stream); the audit
+measures on its own held-out ones.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import numpy as np
+
+from pamkin.design import Design, Pam
+from pamkin.errors import RangeWarning
+from pamkin.paths import PathSet
+from pamkin.rollers import Roller, roller_frame
+
+from .roller_model import RollerData
+
+#: Roller radius [m].
+RADIUS = 0.005
+#: Roller length along its axis [m].
+LENGTH = 0.03
+#: Gap between the roller's surface and the bone at its first placement [m].
+GAP = 0.003
+#: Placement rounds: a roller whose pieces still go too deep moves out by half that depth.
+PLACE_ROUNDS = 2
+#: Segments of the bracket-only fit deeper than this into bone get no roller (the actuator is left as it
+#: was): a roller there moves the cable too far from the fit's line (measured on the default run: every
+#: actuator with a deeper segment lost its fit with a roller, or found no clear route; those up to it: one
+#: gained, one did not).
+MAX_DEPTH = 0.006
+#: Deepest a straight piece may go into bone at the bone-check poses [m] (the audit's limit is 2 mm).
+DEPTH_LIMIT = 0.0015
+#: Farthest a roller's surface may sit from its bone [m] (the audit's bracket limit is 20 mm).
+ROLLER_BRACKET = 0.018
+#: A result with rollers is kept where it lowers the validation error (NRMSE + worst) by more than this.
+MIN_GAIN = 0.02
+#: Test points along each straight piece (every this many metres) for the exact bone check.
+STEP = 0.003
+
+
+def roller_data(data, model, roller: Roller, segment: int) -> RollerData:
+    """The numbers of ``roller`` (on route segment ``segment``) at the problem's samples ``data.q``."""
+    kin = model.kinematics
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RangeWarning)
+        st = kin.forward(data.q, warn_range=False)
+    b = kin.frames.index(roller.body)
+    R = np.einsum("sij,jk->sik", st.body_R[:, b], roller_frame(roller))
+    c = st.body_p[:, b] + np.einsum("sij,j->si", st.body_R[:, b], np.asarray(roller.centre))
+    W, T = PathSet(kin, ["route"], [data.pam.points]).body_jacobian(st)
+    compared = sorted({c_ for c_, *_ in data.objective})
+    omega = {c_: W[:, b, model.coordinates.index(c_)] for c_ in compared}
+    tau = {c_: T[:, b, model.coordinates.index(c_)] for c_ in compared}
+    return RollerData(segment, float(roller.radius_m), float(roller.length_m), R, c, omega, tau)
+
+
+@dataclasses.dataclass
+class Depths:
+    """Exact bone check of one route (with its rollers) at a set of poses."""
+
+    segment_depth: np.ndarray          # (n_segments,) deepest any straight piece of the segment goes [m]
+    deepest: list                      # per segment: (pose index, world point, bone body) at its deepest, or None
+    point_bone: np.ndarray             # (n_points,) own-bone signed distance of each fixed point [m] (nan: moving)
+    roller_bone: np.ndarray            # (n_rollers,) own-bone distance of each roller's surface [m]
+
+    def clear(self, limit: float = DEPTH_LIMIT, bracket: float = 0.02) -> bool:
+        pts = self.point_bone[np.isfinite(self.point_bone)]
+        return bool(np.all(self.segment_depth <= limit) and np.all(pts >= 0) and np.all(pts <= bracket)
+                    and np.all(self.roller_bone >= 0) and np.all(self.roller_bone <= ROLLER_BRACKET))
+
+
+def depths(pam: Pam, model, bones, q: np.ndarray, design: Design, n_right_only: int = 0) -> Depths:
+    """Deepest penetration of every segment of ``pam``'s route (straight pieces around its rollers) into
+    any bone at poses ``q`` — the first ``n_right_only`` of them move the right leg only and are tested
+    against the right side's bones, as the audit's random poses — and the own-bone distances of its
+    fixed points and rollers."""
+    from pamkin.osim import MovingPathPoint
+    from pamkin.robot import PamRobot
+
+    robot = PamRobot(Design("check", (pam,), design.pressure_Pa, design.force_model, design.fitting_length_m,
+                            design.rom), model, sides=("r",))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RangeWarning)
+        st = model.kinematics.forward(q, warn_range=False)
+    pieces = robot.route_pieces(st, 0)
+    n_seg = len(pieces)
+    seg_depth = np.zeros(n_seg)
+    deepest: list = [None] * n_seg
+    for j, seg in enumerate(pieces):
+        for A, B in seg:
+            L = float(np.max(np.linalg.norm(B - A, axis=1)))
+            t = np.linspace(0.0, 1.0, max(3, int(np.ceil(L / STEP)) + 1))
+            P = A[:, None, :] + t[None, :, None] * (B - A)[:, None, :]
+            d, near = _distances(bones, st, P, n_right_only)
+            k = int(np.argmin(d))
+            s, i = np.unravel_index(k, d.shape)
+            if -d[s, i] > seg_depth[j]:
+                seg_depth[j] = float(-d[s, i])
+                deepest[j] = (int(s), P[s, i].copy(), bones.bodies[int(near[s, i])])
+    point_bone = np.array([np.nan if isinstance(pt, MovingPathPoint) else
+                           float(bones.body_signed_distance(pt.body, np.array([pt.location]))[0]) for pt in pam.points])
+    roller_bone = np.array([float(np.min(bones.body_signed_distance(r.body, np.asarray(r.centre) + np.outer(
+        np.linspace(-0.5, 0.5, 9) * r.length_m, r.axis)))) - r.radius_m for r in pam.rollers])
+    return Depths(seg_depth, deepest, point_bone, roller_bone)
+
+
+def _distances(bones, st, P: np.ndarray, n_right_only: int) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distances (S, K) of points P (S, K, 3) to the bones (the right side's only at the first
+    ``n_right_only`` poses) and the nearest bone's index."""
+    from types import SimpleNamespace  # noqa: PLC0415
+
+    k = int(n_right_only)
+    if k <= 0:
+        return bones.signed_distance(st, P, margin=0.0, prune=True)
+    right = [b for b in bones.bodies if not b.endswith("_l")]
+    d1, n1 = bones.signed_distance(SimpleNamespace(body_R=st.body_R[:k], body_p=st.body_p[:k]), P[:k], margin=0.0,
+                                   bodies=right, prune=True)
+    if k >= len(P):
+        return d1, n1
+    d2, n2 = bones.signed_distance(SimpleNamespace(body_R=st.body_R[k:], body_p=st.body_p[k:]), P[k:], margin=0.0,
+                                   prune=True)
+    return np.concatenate([d1, d2]), np.concatenate([n1, n2])
+
+
+def place(bones, model, q: np.ndarray, pam: Pam, j: int, hit: tuple, gap: float = GAP) -> Roller | None:
+    """A roller for segment ``j`` of ``pam``'s route at its deepest penetration ``hit`` = (pose, world point,
+    bone): fixed in that bone, ``gap`` off its surface there, its axis across the segment and the bone's
+    normal, the cable on the normal's side. None where the bone there has no usable normal."""
+    s, x, body = hit
+    kin = model.kinematics
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RangeWarning)
+        st = kin.forward(q[s:s + 1], warn_range=False)
+    b = kin.frames.index(body)
+    Rb, pb = st.body_R[0, b], st.body_p[0, b]
+    xl = Rb.T @ (x - pb)
+    _, C, N = bones.body_closest(body, xl[None])
+    n = N[0] / max(np.linalg.norm(N[0]), 1e-12)
+    from pamkin.pam_body import route_positions  # noqa: PLC0415
+    from pamkin.robot import PamRobot  # noqa: PLC0415
+
+    robot = PamRobot(Design("place", (dataclasses.replace(pam, rollers=()),)), model, sides=("r",))
+    pts = route_positions(robot.paths, st, 0)[0]
+    u = Rb.T @ (pts[j + 1] - pts[j])
+    u /= max(np.linalg.norm(u), 1e-12)
+    axis = np.cross(u, n)
+    if np.linalg.norm(axis) < 1e-6:
+        return None
+    axis /= np.linalg.norm(axis)
+    side = n - (n @ axis) * axis
+    side /= np.linalg.norm(side)
+    centre = C[0] + (gap + RADIUS) * n
+    along = np.linspace(-0.5, 0.5, 9)[:, None] * LENGTH * axis[None, :]
+    for _ in range(4):     # the whole roller a gap off the bone: out along the normal where the bone rises
+        clear = float(np.min(bones.body_signed_distance(body, centre + along))) - RADIUS
+        if clear >= gap - 1e-4:
+            break
+        centre = centre + (gap - clear + 1e-4) * n
+    name = f"{pam.points[j].name}->{pam.points[j + 1].name}"
+    return Roller(name, body, tuple(float(v) for v in centre), tuple(float(v) for v in axis),
+                  tuple(float(v) for v in side), RADIUS, LENGTH)
