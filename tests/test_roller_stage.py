@@ -61,6 +61,8 @@ def test_smooth_length_matches_opensim_wrapping(skel):
     assert 0.2 < w_os.mean() < 0.95 and (~w_os).sum() > 25
     assert np.mean(w_os != w_model) < 0.02
     both = w_os & w_model
+    print(f"\nsmooth roller length vs OpenSim's: {np.mean(w_os != w_model):.1%} of poses wrap in one only; "
+          f"where both wrap max |difference| {np.max(np.abs(model[both] - opensim[both])):.2e} m")
     assert np.max(np.abs(model[both] - opensim[both])) < 5e-5
     np.testing.assert_allclose(model[~w_os & ~w_model], straight[~w_os & ~w_model], atol=1e-12)
 
@@ -101,6 +103,7 @@ def test_problem_with_a_roller_matches_the_numpy_pipeline(skel):
         diff = np.abs(r_casadi - st.moment_arms[rows, 0, ci][ok])
         worst_free = max(worst_free, float(diff[~wraps[rows][ok]].max(initial=0.0)))
         worst = max(worst, float(diff.max(initial=0.0)))
+    print(f"\nCasADi roller moment arms vs the library's: unwrapped {worst_free:.1e} m, all {worst:.1e} m")
     assert worst_free < 1e-8            # metres
     assert worst < 2e-4, worst
 
