@@ -13,7 +13,8 @@ def add_parsers(sub) -> None:
         description="Write the Gait2392 skeleton (bodies with their bone meshes, CustomJoints, coordinates) and "
                     "every PAM of a design, both sides (the left mirrored), as an OpenSim 4.x model: each PAM "
                     "is a PathActuator pamNN_r / pamNN_l whose optimal_force is its maximum force at 620 kPa "
-                    "(F620 x n_parallel, divided by k for a PAM on a k:1 pulley block). Coordinate ranges are the robot's range of motion (a coupled hip "
+                    "(F620 x n_parallel, divided by k for a PAM on a k:1 pulley block); each roller (cable guide) a "
+                    "WrapCylinder on its bone with a PathWrap over its segment. Coordinate ranges are the robot's range of motion (a coupled hip "
                     "adduction limit as its envelope). Point OpenSim at a Geometry folder to see the bones.")
     s.add_argument("design", metavar="DESIGN",
                    help="a design file, 'thesis' (robot/data/thesis_design.yaml) or 'robot' "
