@@ -289,3 +289,35 @@ def test_optimize_refuses_a_seed_with_rollers(tmp_path, skel, capsys):
     err = capsys.readouterr().err
     assert "rolled.yaml" in err and "PAM(s) [1] have rollers" in err
     assert not (tmp_path / "run").exists()
+
+
+def test_exported_rollers_load_back_into_pamkin(tmp_path, skel):
+    """export-osim then pamkin.load_osim: the routes come back as wrapped paths (the rollers as WrapCylinders
+    on their bodies) with the design's lengths and moment arms, both sides."""
+    import pamkin
+    from pamkin.osim_export import design_to_osim
+    from pamkin.urdf_build import GAIT2392_DATA, load_model_data
+
+    des = load_design("v2_seed", bodies=skel.bodies)
+    rol = Roller("p1->p2", "femur_r", (-0.06, -0.1, 0.0), (0.0, 0.0, 1.0), (-1.0, 0.0, 0.0), 0.01)
+    des = des.replace_pam(dataclasses.replace(des.pam(4), rollers=(rol,), pam_on=None))
+    path = design_to_osim(des, load_model_data(GAIT2392_DATA), tmp_path / "rolled.osim")
+    back = pamkin.load_osim(path)
+    assert back.wrapping is not None
+    robot = PamRobot(des, skel)
+    q = _random_q(skel, des, 30)
+    qm = np.zeros((len(q), len(back.coordinates)))
+    for i, c in enumerate(skel.coordinates):
+        qm[:, back.coordinates.index(c)] = q[:, i]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RangeWarning)
+        st = robot.evaluate(q)
+        L = back.lengths(qm)
+        R = back.moment_arms(qm)
+    cols = [back.muscles.index(n) for n in robot.names]
+    np.testing.assert_allclose(L[:, cols], st.lengths, rtol=0, atol=1e-12)
+    ci = [back.coordinates.index(c) for c in skel.coordinates]
+    np.testing.assert_allclose(R[:, cols][:, :, ci], st.moment_arms, rtol=0, atol=1e-8)
+    wrapped = [robot.names.index("pam04_r"), robot.names.index("pam04_l")]
+    assert np.any(np.abs(st.lengths[:, wrapped] - PamRobot(load_design("v2_seed", bodies=skel.bodies), skel)
+                         .evaluate(q).lengths[:, wrapped]) > 1e-6)
