@@ -9,8 +9,9 @@ this stage
 1. solves its problem again from its result without the bone-mesh rows (its attachment points stay on
    their bones within the bracket band; the segments may enter bone): the *bracket-only fit*;
 2. puts a roller (:mod:`pamkin.rollers`) on each segment of that fit that goes deeper than the audit's
-   limit into a bone at the bone-check poses (not on the PAM's own segment): fixed in that bone, a gap
-   off its surface at the deepest penetration, its axis across the segment, the cable on its outer side;
+   limit into a bone at the bone-check poses (not on the PAM's own segment): fixed in that bone at the
+   deepest penetration, on the side the segment passes where it clears the bone, a gap off the surface,
+   its axis across the segment (:func:`place`);
    An actuator with such a segment deeper than :data:`MAX_DEPTH` is left as it was;
 3. solves with the rollers in the problem (:mod:`optimize.roller_model`), then the bone-mesh rounds
    (:func:`optimize.bone_cuts.bone_stage`; the straight pieces before and after each roller take the
@@ -148,38 +149,63 @@ def _distances(bones, st, P: np.ndarray, n_right_only: int) -> tuple[np.ndarray,
 
 def place(bones, model, q: np.ndarray, pam: Pam, j: int, hit: tuple, gap: float = GAP) -> Roller | None:
     """A roller for segment ``j`` of ``pam``'s route at its deepest penetration ``hit`` = (pose, world point,
-    bone): fixed in that bone, ``gap`` off its surface there, its axis across the segment and the bone's
-    normal, the cable on the normal's side. None where the bone there has no usable normal."""
+    bone): fixed in that bone on the side the segment passes at the poses where it clears that bone (the
+    mean direction, across the segment, from the deepest point to the segment at those poses; the bone's
+    surface normal where it never clears it), ``gap`` off the surface there, its axis across the segment
+    and that side. None where no such side can be found."""
+    from pamkin.pam_body import route_positions  # noqa: PLC0415
+    from pamkin.robot import PamRobot  # noqa: PLC0415
+
     s, x, body = hit
     kin = model.kinematics
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RangeWarning)
-        st = kin.forward(q[s:s + 1], warn_range=False)
+        st = kin.forward(q, warn_range=False)
     b = kin.frames.index(body)
-    Rb, pb = st.body_R[0, b], st.body_p[0, b]
-    xl = Rb.T @ (x - pb)
-    _, C, N = bones.body_closest(body, xl[None])
-    n = N[0] / max(np.linalg.norm(N[0]), 1e-12)
-    from pamkin.pam_body import route_positions  # noqa: PLC0415
-    from pamkin.robot import PamRobot  # noqa: PLC0415
-
+    Rb, pb = st.body_R[:, b], st.body_p[:, b]
+    xl = Rb[s].T @ (x - pb[s])
     robot = PamRobot(Design("place", (dataclasses.replace(pam, rollers=()),)), model, sides=("r",))
-    pts = route_positions(robot.paths, st, 0)[0]
-    u = Rb.T @ (pts[j + 1] - pts[j])
+    pts = route_positions(robot.paths, st, 0)
+    A = np.einsum("sji,sj->si", Rb, pts[:, j] - pb)              # the segment in the bone's frame
+    B = np.einsum("sji,sj->si", Rb, pts[:, j + 1] - pb)
+    u = B[s] - A[s]
     u /= max(np.linalg.norm(u), 1e-12)
+    # where the segment clears this bone: its closest point to the deepest one, seen from there
+    t = np.linspace(0.0, 1.0, 41)
+    P = A[:, None, :] + t[None, :, None] * (B - A)[:, None, :]
+    d = bones.body_signed_distance(body, P.reshape(-1, 3)).reshape(len(q), len(t))
+    clear = d.min(axis=1) > gap
+    n = None
+    if clear.any():
+        D = A[clear] - xl
+        seg = B[clear] - A[clear]
+        tt = np.clip(-np.einsum("si,si->s", D, seg) / np.maximum(np.einsum("si,si->s", seg, seg), 1e-18), 0, 1)
+        v = D + tt[:, None] * seg
+        v = v - np.outer(v @ u, u)
+        n = v.mean(axis=0)
+        n = n / np.linalg.norm(n) if np.linalg.norm(n) > 1e-9 else None
+    if n is None:
+        _, _, N = bones.body_closest(body, xl[None])
+        n = N[0] / max(np.linalg.norm(N[0]), 1e-12)
     axis = np.cross(u, n)
     if np.linalg.norm(axis) < 1e-6:
         return None
     axis /= np.linalg.norm(axis)
     side = n - (n @ axis) * axis
     side /= np.linalg.norm(side)
-    centre = C[0] + (gap + RADIUS) * n
+    # out of the bone along that side, then the roller's surface a gap off it along its whole length
+    steps = np.arange(0.0, 0.08, 0.0005)
+    dd = bones.body_signed_distance(body, xl[None, :] + steps[:, None] * side[None, :])
+    outside = np.flatnonzero(dd >= 0)
+    if not len(outside):
+        return None
+    centre = xl + steps[outside[0]] * side + (gap + RADIUS) * side
     along = np.linspace(-0.5, 0.5, 9)[:, None] * LENGTH * axis[None, :]
-    for _ in range(4):     # the whole roller a gap off the bone: out along the normal where the bone rises
-        clear = float(np.min(bones.body_signed_distance(body, centre + along))) - RADIUS
-        if clear >= gap - 1e-4:
+    for _ in range(4):     # the whole roller a gap off the bone: further out where the bone rises
+        room = float(np.min(bones.body_signed_distance(body, centre + along))) - RADIUS
+        if room >= gap - 1e-4:
             break
-        centre = centre + (gap - clear + 1e-4) * n
+        centre = centre + (gap - room + 1e-4) * side
     name = f"{pam.points[j].name}->{pam.points[j + 1].name}"
     return Roller(name, body, tuple(float(v) for v in centre), tuple(float(v) for v in axis),
                   tuple(float(v) for v in side), RADIUS, LENGTH)
