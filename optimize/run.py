@@ -739,7 +739,7 @@ def _roller_actuator(k: int) -> ActuatorResult:
                      f"{1e3 * dep1.segment_depth.max():.1f} mm, rollers "
                      f"{', '.join(f'{1e3 * x:.1f}' for x in dep1.roller_bone)} mm off bone")
         if dep1.clear():
-            found = (pam1, prob1, sol1)
+            found = (pam1, prob1, sol1, cuts.measure(np.array(sol1.points)))
             break
         for j, depth in enumerate(dep1.segment_depth):     # move a roller out, or add one, where too deep
             if depth <= DEPTH_LIMIT or j == mount:
@@ -755,7 +755,7 @@ def _roller_actuator(k: int) -> ActuatorResult:
                     rollers[j] = rol
     if found is None:
         return keep("no clear route with rollers")
-    pam1, prob1, sol1 = found
+    pam1, prob1, sol1, measure = found
     nr1, w1 = error(pam1)
     lines.append(f"    validation NRMSE / worst {nr0:.3f} / {w0:.3f} -> {nr1:.3f} / {w1:.3f} with rollers")
     if not nr1 + w1 < nr0 + w0 - MIN_GAIN:
@@ -764,7 +764,9 @@ def _roller_actuator(k: int) -> ActuatorResult:
         "diameter_mm": d, "n_parallel": n, "start": "roller stage", "status": sol1.status,
         "objective": sol1.objective, "feasible": bool(sol1.success), "seconds": round(time.perf_counter() - t0, 3),
         "relaxed": sorted(relax)}], t0 - r.seconds,
-        dict(r.bone, clear=True, log=list(r.bone.get("log", [])) + lines + ["    kept with rollers"]), r.mount)
+        {**r.bone, **measure.summary([p.name for p in data.pam.points]), "clear": bool(measure.violation() == 0.0),
+         "rollers": [rol.segment for rol in pam1.rollers],
+         "log": list(r.bone.get("log", [])) + lines + ["    kept with rollers"]}, r.mount)
     out.pam = dataclasses.replace(out.pam, rollers=pam1.rollers)
     out.skipped, out.warm = r.skipped, r.warm
     return out

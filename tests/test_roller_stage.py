@@ -204,6 +204,8 @@ def test_roller_stage_gives_internal_oblique_a_roller(skel, monkeypatch):
     q, n_right = bone_check_poses(human, rom, seed_design.pam(2), cfg.seed, crossed=data[0].crossed)
     dep = depths(out.pam, human, R._STATE["bones"], q, seed_design, n_right)
     assert dep.clear() and 0.002 < dep.roller_bone[0] < 0.005
+    assert out.bone["clear"] and out.bone["rollers"] == ["p1->p2"] and out.bone["max_segment_penetration_mm"] == 0
+    assert R.bone_line(out.bone).startswith("clear")
     qv, Tv = R._validation_set()
     before = sum(validation_error(final, human, qv, Tv, list(data[0].crossed), seed_design))
     after = sum(validation_error(out.pam, human, qv, Tv, list(data[0].crossed), seed_design))
