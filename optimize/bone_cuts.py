@@ -127,6 +127,25 @@ class Measure:
         }
 
 
+def right_only_query(query, state, P: np.ndarray, n_right_only: int, **kw) -> tuple:
+    """``query(state, P, **kw)`` (a :class:`pamkin.bones.BoneSet` method: ``nearest``, ``signed_distance``) with
+    the first ``n_right_only`` poses against the right side's bones only (they move the right leg only, as the
+    audit's random poses: the left leg's bones, standing at their default, are not tested), the rest against
+    every bone; the results concatenated along the poses."""
+    from types import SimpleNamespace  # noqa: PLC0415
+
+    k = int(n_right_only)
+    if k <= 0:
+        return query(state, P, **kw)
+    bones = query.__self__
+    right = [b for b in bones.bodies if not b.endswith("_l")]
+    a = query(SimpleNamespace(body_R=state.body_R[:k], body_p=state.body_p[:k]), P[:k], bodies=right, **kw)
+    if k >= len(P):
+        return a
+    b = query(SimpleNamespace(body_R=state.body_R[k:], body_p=state.body_p[k:]), P[k:], **kw)
+    return tuple(np.concatenate([x, y]) for x, y in zip(a, b))
+
+
 class BoneCuts:
     """Bone-check poses of one actuator and the linear clearance rows of its route.
 
@@ -142,7 +161,6 @@ class BoneCuts:
         # the first n_right_only poses move the right leg only (as the audit's random poses): there the
         # left leg's bones, standing at their default, are not tested
         self.n_right_only = int(n_right_only)
-        self.right_side = [b for b in bones.bodies if not b.endswith("_l")]
         kin = model.kinematics
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RangeWarning)
@@ -215,28 +233,16 @@ class BoneCuts:
             # (the same floating-point form as before rollers existed: runs without rollers reproduce to the bit)
             parts.append(X[:, a, None] + t[None, :, None] * (X[:, a + 1] - X[:, a])[:, None, :])
         if not segs:                       # every segment skipped
-            self._t, self._wa, self._wb = np.zeros(0), np.zeros(0), np.zeros(0)
+            self._wa, self._wb = np.zeros(0), np.zeros(0)
             self._const = np.zeros((self.S, 0, 3))
             return np.zeros((self.S, 0, 3)), np.zeros(0, dtype=int), np.zeros(0)
         seg, t = np.concatenate(segs), np.concatenate(ts)
-        self._t = t
         self._wa, self._wb = np.concatenate(was), np.concatenate(wbs)
         self._const = np.concatenate(consts, axis=1)
         return np.concatenate(parts, axis=1), seg, t
 
     def _nearest(self, P: np.ndarray):
-        from types import SimpleNamespace  # noqa: PLC0415
-
-        k = self.n_right_only
-        if k <= 0:
-            return self.bones.nearest(self.state, P, margin=ACTIVATION, prune=True)
-        st = self.state
-        a = self.bones.nearest(SimpleNamespace(body_R=st.body_R[:k], body_p=st.body_p[:k]), P[:k],
-                               margin=ACTIVATION, bodies=self.right_side, prune=True)
-        if k >= len(P):
-            return a
-        b = self.bones.nearest(SimpleNamespace(body_R=st.body_R[k:], body_p=st.body_p[k:]), P[k:], margin=ACTIVATION, prune=True)
-        return tuple(np.concatenate([x, y]) for x, y in zip(a, b))
+        return right_only_query(self.bones.nearest, self.state, P, self.n_right_only, margin=ACTIVATION, prune=True)
 
     def measure(self, loc: np.ndarray, with_rows: bool = False):
         """Exact clearance of the route with locations ``loc`` (P, 3); optionally also the rows."""

@@ -35,6 +35,7 @@ from .bracket import BAND as BRACKET_BAND
 from .config import RunConfig
 from .limit_check import limit_rows
 from .pam_clearance import segment_point_distance
+from .roller_model import segment_terms
 from .samples import CLEARANCE_MARGIN, CLEARANCE_T, ActuatorData, is_free
 
 
@@ -132,8 +133,6 @@ class ActuatorProblem:
         self.L = path_length(X, xp=ca)                            # (1, S)
         rolled = {}
         for rd in self.rollers:
-            from .roller_model import segment_terms  # noqa: PLC0415
-
             j = rd.segment
             Lseg, dseg = segment_terms(X[j], X[j + 1], rd)
             self.L = self.L - _norm_rows(X[j + 1] - X[j]) + Lseg

@@ -10,8 +10,8 @@ points) and neither end lies inside the roller (OpenSim's rule); its length is t
 and the straight distance elsewhere. The two agree in value and slope where the line touches the roller.
 OpenSim's algorithm (the audit's) slides its tangent points along the axis by a construction of its own,
 so the two lengths differ slightly where the cable runs askew over the roller (where both wrap, 1.5 µm at
-most on 500 random poses of a biceps femoris roller, 0.03 mm for another placement;
-``tests/test_roller_stage.py``). As OpenSim, the cable misses the roller
+most on 500 random poses of a biceps femoris roller, ``tests/test_roller_stage.py``; 0.03 mm for another
+placement in an experiment). As OpenSim, the cable misses the roller
 where both tangent points lie beyond its ends.
 """
 
@@ -77,18 +77,10 @@ def roller_length_numeric(a: np.ndarray, b: np.ndarray, radius: float, length: f
     return np.asarray(f(a.T, b.T)[0]).ravel()
 
 
-def _rotate(v, R: np.ndarray, xp=ca):
-    """Vectors (3, S) in ground into the roller frame (R (S, 3, 3)): Rᵀ v per sample."""
-    if xp is ca:
-        return ca.vertcat(*[sum(ca.DM(np.ascontiguousarray(R[:, i, k][None, :])) * v[i, :] for i in range(3))
-                            for k in range(3)])
-    return np.einsum("sik,is->ks", R, v)
-
-
-def to_roller(x, roller: RollerData, xp=ca):
-    """World points (3, S) (CasADi or numpy) in the roller's frame at each sample, (3, S)."""
-    c = ca.DM(np.ascontiguousarray(roller.c.T)) if xp is ca else roller.c.T
-    return _rotate(x - c, roller.R, xp)
+def _rotate(v, R: np.ndarray):
+    """Vectors (3, S) in ground (CasADi) into the roller frame (R (S, 3, 3)): Rᵀ v per sample."""
+    return ca.vertcat(*[sum(ca.DM(np.ascontiguousarray(R[:, i, k][None, :])) * v[i, :] for i in range(3))
+                        for k in range(3)])
 
 
 def segment_terms(Xa, Xb, roller: RollerData):
@@ -96,8 +88,9 @@ def segment_terms(Xa, Xb, roller: RollerData):
     giving ∂length/∂q (1, S) (CasADi expressions)."""
     S = roller.R.shape[0]
     f = _column_function(roller.radius, roller.length).map(S)
-    a = to_roller(Xa, roller)
-    b = to_roller(Xb, roller)
+    c = ca.DM(np.ascontiguousarray(roller.c.T))
+    a = _rotate(Xa - c, roller.R)          # the ends in the roller's frame
+    b = _rotate(Xb - c, roller.R)
     L, ga, gb = f(a, b)
 
     def derivative(Va, Vb, coordinate: str):

@@ -36,8 +36,9 @@ import numpy as np
 from pamkin.design import Design, Pam
 from pamkin.errors import RangeWarning
 from pamkin.paths import PathSet
-from pamkin.rollers import Roller, roller_frame
+from pamkin.rollers import Roller, roller_axis_points, roller_world
 
+from .bone_cuts import right_only_query
 from .roller_model import RollerData
 
 #: Roller radius [m].
@@ -70,8 +71,7 @@ def roller_data(data, model, roller: Roller, segment: int) -> RollerData:
         warnings.simplefilter("ignore", RangeWarning)
         st = kin.forward(data.q, warn_range=False)
     b = kin.frames.index(roller.body)
-    R = np.einsum("sij,jk->sik", st.body_R[:, b], roller_frame(roller))
-    c = st.body_p[:, b] + np.einsum("sij,j->si", st.body_R[:, b], np.asarray(roller.centre))
+    R, c = roller_world(roller, st.body_R[:, b], st.body_p[:, b])
     W, T = PathSet(kin, ["route"], [data.pam.points]).body_jacobian(st)
     compared = sorted({c_ for c_, *_ in data.objective})
     omega = {c_: W[:, b, model.coordinates.index(c_)] for c_ in compared}
@@ -116,7 +116,7 @@ def depths(pam: Pam, model, bones, q: np.ndarray, design: Design, n_right_only: 
             L = float(np.max(np.linalg.norm(B - A, axis=1)))
             t = np.linspace(0.0, 1.0, max(3, int(np.ceil(L / STEP)) + 1))
             P = A[:, None, :] + t[None, :, None] * (B - A)[:, None, :]
-            d, near = _distances(bones, st, P, n_right_only)
+            d, near = right_only_query(bones.signed_distance, st, P, n_right_only, margin=0.0, prune=True)
             k = int(np.argmin(d))
             s, i = np.unravel_index(k, d.shape)
             if -d[s, i] > seg_depth[j]:
@@ -124,27 +124,9 @@ def depths(pam: Pam, model, bones, q: np.ndarray, design: Design, n_right_only: 
                 deepest[j] = (int(s), P[s, i].copy(), bones.bodies[int(near[s, i])])
     point_bone = np.array([np.nan if isinstance(pt, MovingPathPoint) else
                            float(bones.body_signed_distance(pt.body, np.array([pt.location]))[0]) for pt in pam.points])
-    roller_bone = np.array([float(np.min(bones.body_signed_distance(r.body, np.asarray(r.centre) + np.outer(
-        np.linspace(-0.5, 0.5, 9) * r.length_m, r.axis)))) - r.radius_m for r in pam.rollers])
+    roller_bone = np.array([float(np.min(bones.body_signed_distance(r.body, roller_axis_points(r)))) - r.radius_m
+                            for r in pam.rollers])
     return Depths(seg_depth, deepest, point_bone, roller_bone)
-
-
-def _distances(bones, st, P: np.ndarray, n_right_only: int) -> tuple[np.ndarray, np.ndarray]:
-    """Signed distances (S, K) of points P (S, K, 3) to the bones (the right side's only at the first
-    ``n_right_only`` poses) and the nearest bone's index."""
-    from types import SimpleNamespace  # noqa: PLC0415
-
-    k = int(n_right_only)
-    if k <= 0:
-        return bones.signed_distance(st, P, margin=0.0, prune=True)
-    right = [b for b in bones.bodies if not b.endswith("_l")]
-    d1, n1 = bones.signed_distance(SimpleNamespace(body_R=st.body_R[:k], body_p=st.body_p[:k]), P[:k], margin=0.0,
-                                   bodies=right, prune=True)
-    if k >= len(P):
-        return d1, n1
-    d2, n2 = bones.signed_distance(SimpleNamespace(body_R=st.body_R[k:], body_p=st.body_p[k:]), P[k:], margin=0.0,
-                                   prune=True)
-    return np.concatenate([d1, d2]), np.concatenate([n1, n2])
 
 
 def place(bones, model, q: np.ndarray, pam: Pam, j: int, hit: tuple, gap: float = GAP) -> Roller | None:
@@ -199,13 +181,13 @@ def place(bones, model, q: np.ndarray, pam: Pam, j: int, hit: tuple, gap: float 
     outside = np.flatnonzero(dd >= 0)
     if not len(outside):
         return None
-    centre = xl + steps[outside[0]] * side + (gap + RADIUS) * side
-    along = np.linspace(-0.5, 0.5, 9)[:, None] * LENGTH * axis[None, :]
+    name = f"{pam.points[j].name}->{pam.points[j + 1].name}"
+    rol = Roller(name, body, tuple(float(v) for v in xl + steps[outside[0]] * side + (gap + RADIUS) * side),
+                 tuple(float(v) for v in axis), tuple(float(v) for v in side), RADIUS, LENGTH)
     for _ in range(4):     # the whole roller a gap off the bone: further out where the bone rises
-        room = float(np.min(bones.body_signed_distance(body, centre + along))) - RADIUS
+        room = float(np.min(bones.body_signed_distance(body, roller_axis_points(rol)))) - RADIUS
         if room >= gap - 1e-4:
             break
-        centre = centre + (gap - room + 1e-4) * side
-    name = f"{pam.points[j].name}->{pam.points[j + 1].name}"
-    return Roller(name, body, tuple(float(v) for v in centre), tuple(float(v) for v in axis),
-                  tuple(float(v) for v in side), RADIUS, LENGTH)
+        rol = dataclasses.replace(rol, centre=tuple(float(c + (gap - room + 1e-4) * s_)
+                                                    for c, s_ in zip(rol.centre, side)))
+    return rol

@@ -772,9 +772,11 @@ def _roller_actuator(k: int) -> ActuatorResult:
     return out
 
 
-def roller_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr) -> list[ActuatorResult]:
+def roller_pass(results: list[ActuatorResult], cfg: RunConfig, stream=None) -> list[ActuatorResult]:
     """The roller stage (:mod:`optimize.rollers`) for every actuator whose result fails the audit's fit limits
-    (primary NRMSE or worst coordinate error) on the run's validation poses."""
+    (primary NRMSE or worst coordinate error) on the run's validation poses; progress on ``stream`` (default:
+    standard error at the call)."""
+    stream = stream or sys.stderr
     from pamkin.audit import load_limits  # noqa: PLC0415
 
     from .validation import validation_error  # noqa: PLC0415

@@ -54,6 +54,7 @@ from .errors import ConfigurationError, DataFileError, RangeWarning
 from .model import Model
 from .osim import ConditionalPathPoint, MovingPathPoint, PathPoint
 from .pam_body import pam_capsules, placement, route_positions, segment_names
+from .rollers import roller_axis_points
 from .paths import PathSet
 from .robot import PamRobot, robot_skeleton
 from .rom import RangeOfMotion, load_rom
@@ -625,8 +626,8 @@ def _bone_checks(right: PamRobot, bones, sets: list, rows: list[dict], step: flo
     limit = thr["segment_penetration_max_m"]
     # rollers: their axis sampled end to end in the body frame; distances less the radius are the surface's
     kin = right.model.kinematics
-    roller_axes = {(k, r.segment): (kin.frames.index(r.body), np.asarray(r.centre) + np.outer(
-        np.linspace(-0.5, 0.5, 9) * r.length_m, r.axis)) for k, pam in enumerate(des.pams) for r in pam.rollers}
+    roller_axes = {(k, r.segment): (kin.frames.index(r.body), roller_axis_points(r))
+                   for k, pam in enumerate(des.pams) for r in pam.rollers}
     roller_any = dict.fromkeys(roller_axes, np.inf)
     for state, only in sets:
         for key, (b, local) in roller_axes.items():

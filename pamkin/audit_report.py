@@ -195,8 +195,7 @@ def audit_view(res, path: str | os.PathLike, geometry_dir: str | None = None) ->
 
     from .bones import BoneSet  # noqa: PLC0415
     from .robot import PamRobot, robot_skeleton  # noqa: PLC0415
-    from .rollers import roller_frame  # noqa: PLC0415
-    from .view import StaticWindow, _frame_camera, _translation  # noqa: PLC0415
+    from .view import StaticWindow, _frame_camera, _translation, roller_transforms  # noqa: PLC0415
 
     thr = res.thresholds
     des = res.details["design"]
@@ -254,9 +253,7 @@ def audit_view(res, path: str | os.PathLike, geometry_dir: str | None = None) ->
             own = info["own_bone_distance_m"]
             bad = own < 0 or own > thr["bracket_max_m"]
             b = skel.kinematics.frames.index(r.body)
-            T = np.eye(4)
-            T[:3, :3] = st.body_R[0, b] @ (roller_frame(r)[:, [0, 2, 1]] * np.array([1.0, 1.0, -1.0]))
-            T[:3, 3] = st.body_p[0, b] + st.body_R[0, b] @ np.asarray(r.centre)
+            T = roller_transforms(r, st.body_R[:1, b], st.body_p[:1, b])[0]
             node = f"pamkin/points/{pam.key}/roller_{r.segment.replace('->', '_')}"
             vis[node].set_object(g.Cylinder(r.length_m, r.radius_m),
                                  g.MeshLambertMaterial(color=0xD62728 if bad else 0x1F77B4))

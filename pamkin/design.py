@@ -402,3 +402,14 @@ def mirror_point(pt: AnyPathPoint) -> AnyPathPoint:
         return ConditionalPathPoint(mirror_name(pt.name), mirror_name(pt.body), (x, y, -z),
                                     coordinate=mirror_name(pt.coordinate), range=pt.range)
     return PathPoint(mirror_name(pt.name), mirror_name(pt.body), (x, y, -z))
+
+
+def mirror_roller(r: Roller) -> Roller:
+    """The left-side roller of a right-side one (z → −z in the body frame, ``_r`` → ``_l``; the segment named
+    by the mirrored points' names)."""
+    def m(v):
+        return (v[0], v[1], -v[2])
+
+    a, b = r.segment.split("->")
+    return Roller(f"{mirror_name(a)}->{mirror_name(b)}", mirror_name(r.body), m(r.centre), m(r.axis), m(r.side),
+                  r.radius_m, r.length_m)

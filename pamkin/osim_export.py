@@ -53,7 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from . import festo
-from .design import Design, Pam, mirror_name, mirror_point
+from .design import Design, Pam, mirror_point, mirror_roller
 from .errors import DataFileError, PamkinError
 from .functions import Constant, LinearFunction, MultiplierFunction, PolynomialFunction, SimmSpline
 from .osim import (
@@ -67,7 +67,7 @@ from .osim import (
     OsimModel,
     TransformAxis,
 )
-from .rollers import mirror_roller, path_wraps
+from .rollers import path_wraps
 from .rom import RangeOfMotion
 from .urdf_build import atomic_write
 from .wrapping import PathWrap, WrapObject
@@ -327,7 +327,7 @@ def _design_wraps(design: Design) -> dict[tuple[int, str], list[PathWrap]]:
             continue
         for side in ("r", "l"):
             pts = p.points if side == "r" else tuple(mirror_point(pt) for pt in p.points)
-            rs = p.rollers if side == "r" else tuple(mirror_roller(r, mirror_name) for r in p.rollers)
+            rs = p.rollers if side == "r" else tuple(mirror_roller(r) for r in p.rollers)
             out[(p.id, side)] = path_wraps([f"{a.name}->{b.name}" for a, b in zip(pts[:-1], pts[1:])], rs,
                                            f"{p.key}_{side}")
     return out

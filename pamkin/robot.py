@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from . import festo
-from .design import Design, Pam, load_design, mirror_name, mirror_point, pam_length
-from .rollers import Roller, mirror_roller, path_wraps, roller_pieces
+from .design import Design, Pam, load_design, mirror_name, mirror_point, mirror_roller, pam_length
+from .rollers import Roller, path_wraps, roller_pieces
 from .kinematics import ConfigLike
 from .model import Model
 from .paths import PathSet
@@ -80,8 +80,7 @@ class PamRobot:
                 names.append(f"{p.key}_{side}")
                 self.pams.append(p)
                 self.sides.append(side)
-                self.rollers.append(p.rollers if side == "r" else tuple(mirror_roller(r, mirror_name)
-                                                                        for r in p.rollers))
+                self.rollers.append(p.rollers if side == "r" else tuple(mirror_roller(r) for r in p.rollers))
         self.names = names
         #: Per PAM column, its route points (this side's).
         self.routes = routes

@@ -30,7 +30,8 @@ import numpy as np
 
 from .wrapping import NO_WRAP, PathWrap, WrapObject, wrap_cylinder
 
-__all__ = ["Roller", "ROLLER_LENGTH_M", "mirror_roller", "roller_from_dict", "roller_frame", "roller_pieces",
+__all__ = ["Roller", "ROLLER_LENGTH_M", "roller_axis_points", "roller_from_dict", "roller_frame", "roller_pieces",
+           "roller_world",
            "path_wraps", "wrap_object"]
 
 #: Default roller length along its axis [m].
@@ -116,17 +117,6 @@ def roller_from_dict(d: dict, segments: Sequence[str], bodies: Sequence[str] | N
                   radius, length)
 
 
-def mirror_roller(r: Roller, mirror_name) -> Roller:
-    """The left-side roller of a right-side one (z → −z in the body frame, ``_r`` → ``_l``; ``mirror_name``
-    maps names, :func:`pamkin.design.mirror_name`)."""
-    def m(v):
-        return (v[0], v[1], -v[2])
-
-    a, b = r.segment.split("->")
-    return Roller(f"{mirror_name(a)}->{mirror_name(b)}", mirror_name(r.body), m(r.centre), m(r.axis), m(r.side),
-                  r.radius_m, r.length_m)
-
-
 def roller_frame(r: Roller) -> np.ndarray:
     """(3, 3) rotation of the roller's wrap-cylinder frame in its body: columns x = ``side``, y = z × x,
     z = ``axis`` (right-handed)."""
@@ -136,6 +126,19 @@ def roller_frame(r: Roller) -> np.ndarray:
     x /= np.linalg.norm(x)
     z /= np.linalg.norm(z)
     return np.column_stack([x, np.cross(z, x), z])
+
+
+def roller_world(r: Roller, R_body: np.ndarray, p_body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The roller frame in ground at S placements of its body (R_body (S, 3, 3), p_body (S, 3)): its
+    orientation (S, 3, 3) (columns :func:`roller_frame`'s) and its centre (S, 3) [m]."""
+    R = np.einsum("sij,jk->sik", R_body, roller_frame(r))
+    return R, p_body + np.einsum("sij,j->si", R_body, np.asarray(r.centre, float))
+
+
+def roller_axis_points(r: Roller, n: int = 9) -> np.ndarray:
+    """(n, 3) points along the roller's axis from end to end, in its body's frame [m] (its surface is
+    ``radius_m`` from them: the bone checks of the audit and the optimiser's placement)."""
+    return np.asarray(r.centre, float) + np.outer(np.linspace(-0.5, 0.5, n) * r.length_m, r.axis)
 
 
 def wrap_object(r: Roller, name: str) -> WrapObject:
@@ -169,10 +172,7 @@ def roller_pieces(A: np.ndarray, B: np.ndarray, R_body: np.ndarray, p_body: np.n
         (S,) whether it wraps and (S,) the cable's length over the roller between them [m]; where it does
         not wrap, T1 = T2 = B (the pieces A→T1, T2→B are then the segment and a point) and arc = 0.
     """
-    Rf = roller_frame(r)
-    c = np.asarray(r.centre, float)
-    Rw = np.einsum("sij,jk->sik", R_body, Rf)                    # roller frame -> world
-    pw = p_body + np.einsum("sij,j->si", R_body, c)
+    Rw, pw = roller_world(r, R_body, p_body)                     # roller frame -> world
     a = np.einsum("sji,sj->si", Rw, A - pw)                      # ends in the roller frame
     b = np.einsum("sji,sj->si", Rw, B - pw)
     T1, T2 = B.copy(), B.copy()

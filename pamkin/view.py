@@ -47,7 +47,7 @@ import numpy as np
 from ._resources import DEFAULT_GEOMETRY as _DEFAULT_GEOMETRY
 from .errors import ConfigurationError, PamkinError, RangeWarning
 from .pam_body import body_interval, placements, route_positions
-from .rollers import roller_frame
+from .rollers import roller_world
 
 __all__ = ["ColorScale", "StaticWindow", "View", "build_view", "screenshot", "simple_bone_meshes"]
 
@@ -476,10 +476,7 @@ def build_view(human, robot, *, meshes: dict | None = None, layout: str = "side"
     for k, name in enumerate(robot.names):
         for i, r in enumerate(robot.rollers[k]):          # rollers: grey cylinders fixed in their bones
             b = robot.model.kinematics.frames.index(r.body)
-            Rr = roller_frame(r)[:, [0, 2, 1]] * np.array([1.0, 1.0, -1.0])   # meshcat's cylinder axis is y
-            T = np.tile(np.eye(4), (F, 1, 1))
-            T[:, :3, :3] = np.einsum("fij,jk->fik", rk.body_R[:, b], Rr)
-            T[:, :3, 3] = rk.body_p[:, b] + np.einsum("fij,j->fi", rk.body_R[:, b], np.asarray(r.centre))
+            T = roller_transforms(r, rk.body_R[:, b], rk.body_p[:, b])
             node = f"pamkin/robot/pams/{name}/roller{i + 1}"
             vis[node].set_object(g.Cylinder(r.length_m, r.radius_m), g.MeshLambertMaterial(color=ROLLER_COLOR))
             _place(vis, anim, node, T)
@@ -519,6 +516,16 @@ def pam_placements(robot) -> list:
 
     q = random_poses(robot.model, load_rom(robot.design.rom, "r"), PLACEMENT_POSES)
     return [place for place, _, _ in placements(robot.design, robot.model, q)]
+
+
+def roller_transforms(r, R_body: np.ndarray, p_body: np.ndarray) -> np.ndarray:
+    """(S, 4, 4) placements of a meshcat ``Cylinder`` (its axis is its y axis) drawing roller ``r``
+    (:mod:`pamkin.rollers`) at S placements of its body (R_body (S, 3, 3), p_body (S, 3))."""
+    R, c = roller_world(r, R_body, p_body)
+    T = np.tile(np.eye(4), (len(c), 1, 1))
+    T[:, :3, :3] = R[:, :, [0, 2, 1]] * np.array([1.0, 1.0, -1.0])    # columns x, z, −y: right-handed
+    T[:, :3, 3] = c
+    return T
 
 
 def _rgb(hex_color: int) -> np.ndarray:

@@ -5,6 +5,7 @@ the stage in a run."""
 from __future__ import annotations
 
 import dataclasses
+import io
 import warnings
 
 import numpy as np
@@ -196,7 +197,9 @@ def test_roller_stage_gives_internal_oblique_a_roller(skel, monkeypatch):
                            final.tendon_length_m)
     given = R.ActuatorResult(2, final.name, final, "given", True, z=z, relaxed=["one_segment"], n_parallel=2,
                              bone={"log": []})
-    out = R.roller_pass([given], cfg)[0]
+    progress = io.StringIO()
+    out = R.roller_pass([given], cfg, progress)[0]
+    assert "rollers: 1 actuators fail a fit limit" in progress.getvalue()
     log = "\n".join(out.bone["log"])
     assert "kept with rollers" in log, log
     (rol,) = out.pam.rollers
@@ -211,4 +214,4 @@ def test_roller_stage_gives_internal_oblique_a_roller(skel, monkeypatch):
     after = sum(validation_error(out.pam, human, qv, Tv, list(data[0].crossed), seed_design))
     assert after < before - MIN_GAIN
     # a result that passes both fit limits is not tried
-    assert R.roller_pass([out], cfg)[0] is out
+    assert R.roller_pass([out], cfg, progress)[0] is out
