@@ -182,6 +182,16 @@ class BoneCuts:
         self.skip: set[int] = set()
         #: segment index -> its roller (pamkin.rollers.Roller): the straight pieces around it are sampled
         self.rollers: dict = {}
+        #: same-body segments (both ends fixed in one body, :func:`pamkin.detour.same_body_segments`) shorter
+        #: than this [m] do not see their own bone: the run carries them round it afterwards
+        #: (:func:`pamkin.detour.detour_pam`, a constant length); other bones still count. 0: off
+        self.detour_below = 0.0
+        #: segments that always see their own bone (the one the PAM body is being put on)
+        self.keep: set[int] = set()
+        from pamkin.detour import same_body_segments  # noqa: PLC0415
+
+        self._same_body = [a for a in same_body_segments(pam) if bones.meshes.get(pam.points[a].body)]
+        self._own = {a: bones.bodies.index(pam.points[a].body) for a in self._same_body}
         self._frames = list(kin.frames)
 
     def set_obstacles(self, bodies: list, radius: float, mount: int) -> None:
@@ -250,6 +260,11 @@ class BoneCuts:
         P, seg, t = self._samples(X)
         if P.shape[1]:
             d, near, c, n = self._nearest(P)
+            for a in self.detoured(loc):
+                cols = np.flatnonzero(seg == a)
+                sub = d[:, cols]
+                sub[near[:, cols] == self._own[a]] = np.inf
+                d[:, cols] = sub
         else:
             d, near = np.full((self.S, 0), np.inf), np.zeros((self.S, 0), dtype=int)
             c, n = np.zeros((self.S, 0, 3)), np.zeros((self.S, 0, 3))
@@ -278,6 +293,26 @@ class BoneCuts:
             return m
         W, w0 = self._rows(loc, d, c, n, seg, t, cs, ns, room=MAX_CUTS - len(pam_rows[0]))
         return m, (np.vstack([W, pam_rows[0]]), np.concatenate([w0, pam_rows[1]]))
+
+    def detoured(self, loc: np.ndarray) -> list[int]:
+        """The same-body segments (their own bone has a mesh) shorter than :attr:`detour_below` for the point
+        locations ``loc`` (P, 3): those whose own bone is left to the detours."""
+        if self.detour_below <= 0:
+            return []
+        return [a for a in self._same_body if a not in self.keep and self.rollers.get(a) is None
+                and np.linalg.norm(loc[a + 1] - loc[a]) < self.detour_below]
+
+    def in_own_bone(self, loc: np.ndarray) -> list[int]:
+        """Of :meth:`detoured`, the segments whose straight line enters their own bone (body frame, exact
+        at 1 mm samples): they cannot hold the PAM body as they are."""
+        from pamkin.detour import piece_clearance  # noqa: PLC0415
+
+        out = []
+        for a in self.detoured(loc):
+            body = self.pam.points[a].body
+            if piece_clearance(loc[a], loc[a + 1], lambda P, b=body: self.bones.body_closest(b, P)[0]) < 0:
+                out.append(a)
+        return out
 
     def _pam_clearance(self, P, seg, with_rows):
         """Clearance to every obstacle PAM body (and, optionally, rows for the nearest samples)."""

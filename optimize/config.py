@@ -81,6 +81,10 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      validation poses gets rollers (cable guides on bone, pamkin.rollers) where
                                  #      its fit without the bone rows goes into bone, kept where they lower its
                                  #      validation error and the route is clear (optimize.rollers)
+    detours = true               # (v2, with bone_mesh) a route segment between two points of one bone (a constant
+                                 #      length) too short to hold the PAM body is left out of that bone's rows and
+                                 #      afterwards carried round it by via points (pamkin.detour; the added length
+                                 #      on the tendon: every torque unchanged), then checked against every bone
     max_units = 60               # (v2) PAM units of the whole robot (both sides; 0: no limit): the diameter
                                  #      and parallel count of every actuator are chosen together, before the
                                  #      bone-mesh rounds, for the least summed score within this budget
@@ -141,7 +145,7 @@ _SECTIONS = {
                "one_segment": "one_segment", "one_segment_actuators": "one_segment_actuators", "mount": "mount", "mount_cost": "mount_cost", "mount_failing": "mount_failing", "mount_blocks": "mount_blocks", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
                "bone_seed_start": "bone_seed_start", "bracket_fit": "bracket_fit",
                "max_units": "max_units", "walking_min": "walking_min",
-               "pam_clearance": "pam_clearance", "rollers": "rollers", "resize_above": "resize_above", "block_refit_above": "block_refit_above",
+               "pam_clearance": "pam_clearance", "rollers": "rollers", "detours": "detours", "resize_above": "resize_above", "block_refit_above": "block_refit_above",
                "max_mass_kg": "max_mass_kg", "pam_ends": "pam_ends", "resize_on": "resize_on"},
 }
 
@@ -212,6 +216,7 @@ class RunConfig:
     bracket_fit: bool = False
     pam_clearance: bool = False
     rollers: bool = False
+    detours: bool = True
     max_units: int = 60
     walking_min: float = 0.9
     resize_above: float = 1.0

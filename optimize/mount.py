@@ -130,7 +130,8 @@ class _MountSolver:
         return sol
 
 
-def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam, failing=None) -> tuple[object, dict]:
+def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam, failing=None, blocked=frozenset()
+                ) -> tuple[object, dict]:
     """Put the PAM of a solved actuator on one straight segment of its route (module docstring).
 
     Args:
@@ -161,7 +162,12 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam, failing=Non
     j_before = float(best.objective)
     info: dict = {"mounted": False, "objective_before": j_before, "rest_before_m": float(best.rest_length),
                   "tendon_before_m": float(max(best.tendon_length, 0.0))}
-    order = list(np.argsort(-seg_min))[:N_SEGMENTS]
+    # segments running through their own bone, left to the detours (``blocked``), cannot hold the PAM body
+    order = [j for j in np.argsort(-seg_min) if int(j) not in blocked][:N_SEGMENTS]
+    if not order:
+        info.update(reason="in bone", segment=None, line="cannot sit on one straight segment: every segment runs "
+                    "through its own bone (left to the detours)")
+        return best, info
     need, most = reach_bound(L, float(seg_min[order[0]]), prob.d, cfg, f, prob.k)
     info.update(least_rest_m=need, segment_holds_m=most, excursion_m=float(np.ptp(L)), segment_index=int(order[0]))
     if need > most:
@@ -258,7 +264,8 @@ BLOCKS = (2, 3)
 BLOCK_REASONS = ("out of reach", "infeasible")
 
 
-def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam) -> tuple[object, object, dict]:
+def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam, blocked=frozenset()
+                ) -> tuple[object, object, dict]:
     """A PAM out of reach of one straight segment of its fixed route, or infeasible there (``info`` from
     :func:`mount_stage`, :data:`BLOCK_REASONS`), on a pulley block instead (``[limits] mount_blocks``): a
     2:1 block, and where no diameter mounts on it a 3:1 block (:data:`BLOCKS`; not for a diameter that fit
@@ -292,7 +299,7 @@ def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam)
                                  prob.relax, prob.bracket or None)
             start = dataclasses.replace(p2.evaluate(best.z, best.n_parallel), objective=best.objective,
                                         rest_length=best.rest_length / k)
-            sol, out = mount_stage(p2, start, pk, cfg, model, rom, solution_pam)
+            sol, out = mount_stage(p2, start, pk, cfg, model, rom, solution_pam, blocked=blocked)
             these.append(f"{d} mm: {out.get('reason') or 'mounted'}"
                          + (f" (root +{out['cost']:.3f})" if "cost" in out else ""))
             if out.get("reason") == "fit cost":
@@ -375,6 +382,8 @@ def mount_rounds(prob, best, info: dict, pam: Pam, cfg, cuts, model, rom, soluti
     f = prob.data.fitting_length
     p1 = prob.with_mount(int(j))
     start = p1.evaluate(best.z, best.n_parallel)
+    keep = set(cuts.keep)
+    cuts.keep = keep | {int(j)}          # the PAM's own segment sees its own bone (never left to a detour)
     m0 = cuts.measure(np.array(best.points))
     q_check = check_poses(model, rom, prob.data.crossed or [pam.primary_coordinate], cfg.seed, pam.id)
     seg_rows = np.array([fam.startswith("PAM fits on segment") for fam in p1.family])
@@ -419,6 +428,7 @@ def mount_rounds(prob, best, info: dict, pam: Pam, cfg, cuts, model, rom, soluti
                 p1.lbg[seg_rows] += -margin + EXTRA * 0.1
     finally:
         p1.lbg, p1.ubg = limits
+        cuts.keep = keep
     moved = float(np.max(np.abs(np.asarray(sol.points) - np.asarray(best.points)))) if sol.success else 0.0
     out = dict(info)
     rounds = {"segment": names[j], "seconds": round(time.perf_counter() - t0, 2), "log": log,

@@ -274,6 +274,10 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
 
     q_bone, n_right = bone_check_poses(_STATE["human"], _STATE["rom"], pam, cfg.seed, crossed=prob.data.crossed)
     cuts = BoneCuts(pam, _STATE["human"], _STATE["bones"], q_bone, n_right)
+    # same-body segments too short to hold the PAM body are carried round their own bone afterwards
+    # (detour_pass): the rounds leave that bone out for them
+    below = _detour_below(pam, prob, best, cfg)
+    cuts.detour_below = below
     lines: list[str] = []
     before = best
     # the strain and force limits on many more poses than the problem's samples (optimize.limit_check):
@@ -319,6 +323,7 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
         lines.append(f"  attachment point within 3 mm of another bone at {len(extra)} (the closest) of "
                      f"{N_POINT_CHECK} more random poses: added to the bone-check poses, bone rounds again")
         cuts = BoneCuts(pam, _STATE["human"], _STATE["bones"], np.vstack([extra, q_bone]), n_right + len(extra))
+        cuts.detour_below = below
         best, measure, more = bone_stage(prob, best, cuts, cfg.bone_rounds, lines)
         info += more
     prob.lbg, prob.ubg = limits
@@ -342,6 +347,29 @@ def _bone_rounds(prob, best, pam: Pam, cfg: RunConfig):
     bone = _bone_info(cuts, before, measure, info, lines, [p.name for p in pam.points])
     bone.update(objective_before=float(before.objective), objective_after=float(best.objective))
     return best, bone, cuts
+
+
+def _detour_below(pam: Pam, prob, sol, cfg: RunConfig) -> float:
+    """Length [m] below which a same-body segment of ``pam`` could never hold its PAM body, whatever resting
+    length, diameter or pulley block the one-segment stage and the passes after it choose: the least resting
+    length the route's excursion at ``sol`` allows (its stroke over Festo's largest contraction plus the
+    stretch limit, on the largest block the run may use) plus both fittings and the segment margin. Such
+    segments are left to :func:`detour_pass` (0 without detours)."""
+    if not (cfg.detours and sol.success):
+        return 0.0
+    import casadi as ca  # noqa: PLC0415
+
+    from .mount import BLOCKS  # noqa: PLC0415
+    from .problem import SEGMENT_MARGIN  # noqa: PLC0415
+
+    ci = [int(s) for s in prob.data.constraint_idx]
+    L = np.array(ca.Function("L", [prob.z], [prob.L[0, ci]])(sol.z)).ravel()
+    k = max([prob.k, *(BLOCKS if cfg.mount and cfg.mount_blocks else ())])
+    stretch = cfg.pretension_scale * max(festo.max_pretension(d) for d in cfg.diameters_mm)
+    # the contraction limit is Festo's rated one at most (reach_bound); without it, no bound below 100 %
+    c = max(festo.max_contraction(d) for d in cfg.diameters_mm) if cfg.rated_force else 1.0
+    least = float(np.ptp(L)) / (k * (c + stretch))
+    return float(least + 2 * prob.data.fitting_length + SEGMENT_MARGIN)
 
 
 def _seed_start(prob, best, measure, info: list, cuts, cfg: RunConfig, lines: list[str]):
@@ -463,7 +491,8 @@ def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None, blocks: bool = True)
 
     # made only where a fit cost is weighed (the validation errors of this actuator's crossed coordinates)
     failing = (lambda a, b: _failing_fit(list(prob.data.crossed or []))(a, b)) if cfg.mount_failing else None
-    best, info = mount_stage(prob, best, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam, failing)
+    blocked = frozenset(cuts.in_own_bone(np.array(best.points))) if cuts is not None else frozenset()
+    best, info = mount_stage(prob, best, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam, failing, blocked)
     if not info.get("mounted") and cuts is not None:
         best, prob, info = mount_rounds(prob, best, info, pam, cfg, cuts, _STATE["human"], _STATE["rom"],
                                         solution_pam)
@@ -473,7 +502,8 @@ def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None, blocks: bool = True)
             info = dict(info, line=info["line"] + "; no pulley block tried (warm start: its transmission kept)")
     elif not info.get("mounted"):
         before = (best, prob, info)
-        best, prob, info = mount_block(prob, best, info, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam)
+        best, prob, info = mount_block(prob, best, info, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam,
+                                       blocked)
         if info.get("transmission", 1) > 1:
             direct = before
     return best, prob, info, direct
@@ -647,9 +677,6 @@ def _roller_actuator(k: int) -> ActuatorResult:
     """The roller stage of one actuator (in a worker; :mod:`optimize.rollers`): the bracket-only fit from its
     result, rollers where that fit's segments go into bone, solved with them and checked exactly; the result
     with rollers where it lowers the validation error, else the result as it was (its log says why)."""
-    from pamkin.pam_body import placement, route_positions  # noqa: PLC0415
-    from pamkin.robot import PamRobot  # noqa: PLC0415
-
     from .bone_cuts import BoneCuts, bone_check_poses, bone_stage  # noqa: PLC0415
     from .problem import FEASIBILITY_TOL, ActuatorProblem  # noqa: PLC0415
     from .rollers import DEPTH_LIMIT, MAX_DEPTH, MIN_GAIN, PLACE_ROUNDS, depths, place, roller_data  # noqa: PLC0415
@@ -678,13 +705,7 @@ def _roller_actuator(k: int) -> ActuatorResult:
         return out
 
     nr0, w0 = error(r.pam)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RangeWarning)
-        robot = PamRobot(Design("mount", (r.pam,), design.pressure_Pa, design.force_model,
-                                design.fitting_length_m, design.rom), human, sides=("r",))
-        ks = human.kinematics.forward(q_bone, warn_range=False)
-        pl = placement(route_positions(robot.paths, ks, 0), r.pam, robot.evaluate(q_bone).pam_lengths[:, 0],
-                       design.fitting_length_m)
+    pl = _placement(r.pam, q_bone)
     mount = pl.segment if pl.on_one_segment else None
     bracket = _bracket(data0.pam, seed, regions, cfg)
     d, n = r.pam.diameter_mm, r.n_parallel
@@ -769,6 +790,67 @@ def _roller_actuator(k: int) -> ActuatorResult:
          "log": list(r.bone.get("log", [])) + lines + ["    kept with rollers"]}, r.mount)
     out.pam = dataclasses.replace(out.pam, rollers=pam1.rollers)
     out.skipped, out.warm = r.skipped, r.warm
+    return out
+
+
+def _placement(pam: Pam, q: np.ndarray):
+    """Where the PAM body of ``pam`` (right side) sits on its route at poses ``q``
+    (:func:`pamkin.pam_body.placement`, as the audit puts it)."""
+    from pamkin.pam_body import placement, route_positions  # noqa: PLC0415
+    from pamkin.robot import PamRobot  # noqa: PLC0415
+
+    human, design = _STATE["human"], _STATE["seed_design"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RangeWarning)
+        robot = PamRobot(Design("mount", (pam,), design.pressure_Pa, design.force_model,
+                                design.fitting_length_m, design.rom), human, sides=("r",))
+        ks = human.kinematics.forward(q, warn_range=False)
+        return placement(route_positions(robot.paths, ks, 0), pam, robot.evaluate(q).pam_lengths[:, 0],
+                         design.fitting_length_m)
+
+
+def detour_pass(results: list[ActuatorResult], cfg: RunConfig, stream=None) -> list[ActuatorResult]:
+    """Every same-body segment of a result's route (both ends fixed in one body) that runs into its own bone,
+    but the one its PAM body sits on, carried round that bone by via points (:func:`pamkin.detour.detour_pam`:
+    a constant length, on the tendon; every torque unchanged), then the route checked exactly against every
+    bone at its bone-check poses (the result's bone summary is that check's). Progress on ``stream``
+    (default: standard error at the call)."""
+    stream = stream or sys.stderr
+    from pamkin.detour import detour_pam, same_body_segments  # noqa: PLC0415
+    from pamkin.pam_body import segment_names  # noqa: PLC0415
+
+    from .bone_cuts import BoneCuts, bone_check_poses  # noqa: PLC0415
+
+    human, bones = _STATE["human"], _STATE["bones"]
+    out = list(results)
+    for k, r in enumerate(results):
+        if r.z is None or not r.success or not r.bone:
+            continue
+        data = _STATE["data"][k]
+        q, n_right = bone_check_poses(human, _STATE["rom"], data.pam, cfg.seed, crossed=data.crossed)
+        pl = _placement(r.pam, q)
+        segs = [a for a in same_body_segments(r.pam) if not (pl.on_one_segment and a == pl.segment)]
+        if not segs:
+            continue
+        t0 = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RangeWarning)
+            state = human.kinematics.forward(q, warn_range=False)
+        new, outcome = detour_pam(r.pam, bones, segs, state, list(human.kinematics.frames), n_right)
+        if not outcome:
+            continue
+        names = segment_names(r.pam)
+        cuts = BoneCuts(new, human, bones, q, n_right)
+        loc = np.array([p.location if hasattr(p, "location") else (0.0, 0.0, 0.0) for p in new.points])
+        m = cuts.measure(loc)
+        what = "; ".join(f"{names[a]}: {v}" for a, v in sorted(outcome.items()))
+        line = (f"  detours of actuator {r.id} {r.name}: {what} (tendon +{1e3 * (new.tendon_length_m - r.pam.tendon_length_m):.1f} mm);"
+                f" route then {'clear of bone' if m.violation() == 0.0 else f'{1e3 * m.violation():.1f} mm into bone'}"
+                f" at its bone-check poses ({time.perf_counter() - t0:.1f} s)")
+        print(line.strip(), file=stream, flush=True)
+        bone = dict(r.bone, **m.summary([p.name for p in new.points]), clear=bool(m.violation() == 0.0),
+                    detours={names[a]: v for a, v in outcome.items()}, log=list(r.bone.get("log", [])) + [line])
+        out[k] = dataclasses.replace(r, pam=new, bone=bone)
     return out
 
 
@@ -1365,10 +1447,14 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, o
     seed = load_design(cfg.design, **kw) if cfg.design else load_design(**kw)
     warm_ids: set[int] = set()
     if cfg.warm_start:
+        from pamkin.detour import remove_via  # noqa: PLC0415
+
         warm = load_design(Path(cfg.warm_start) / "design.yaml", **kw)
         for p in warm.pams:
             if p.id in {q.id for q in seed.pams}:
-                # a warm route's rollers are not kept: the roller stage (limits.rollers) places them again
+                # a warm route's rollers and detours are not kept: the roller stage (limits.rollers) and the
+                # detours (limits.detours) place them again
+                p = remove_via(p, {pt.name for pt in seed.pam(p.id).points})
                 seed = seed.replace_pam(dataclasses.replace(p, rollers=()))
                 warm_ids.add(p.id)
     _STATE["warm_ids"] = warm_ids      # these actuators try their warm diameter and count first
@@ -1394,6 +1480,8 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, o
                 results = clearance_pass(seed, results, cfg, stream)
             if cfg.bone_mesh and cfg.rollers:
                 results = roller_pass(results, cfg, stream)
+            if cfg.bone_mesh and cfg.detours:
+                results = detour_pass(results, cfg, stream)
     finally:
         _STATE["warm_ids"] = set()     # a later solve_all in this process (library use) starts cold
     log.extend((_STATE["walking"] or {}).get("log", []))

@@ -1287,8 +1287,9 @@ def test_warm_start_keeps_its_transmission(blocks, monkeypatch):
     monkeypatch.setattr(mount_mod, "mount_block", block)
     monkeypatch.setitem(run_mod._STATE, "human", None)
     monkeypatch.setitem(run_mod._STATE, "rom", None)
-    prob, best = SimpleNamespace(k=1), SimpleNamespace(success=True)
-    sol, _, info, direct = run_mod._mount(prob, best, None, RunConfig(), cuts=object(), blocks=blocks)
+    prob, best = SimpleNamespace(k=1), SimpleNamespace(success=True, points=[])
+    cuts = SimpleNamespace(in_own_bone=lambda loc: [])        # no segment left to a detour runs through bone
+    sol, _, info, direct = run_mod._mount(prob, best, None, RunConfig(), cuts=cuts, blocks=blocks)
     if blocks:
         assert calls == [best] and sol == "on a block" and info["transmission"] == 2 and direct[0] is best
     else:

@@ -22,6 +22,7 @@ import pytest
 from pamkin import festo
 from pamkin.cli import main
 from pamkin.design import load_design, mirror_point
+from pamkin.detour import insert_via
 from pamkin.errors import DataFileError, RangeWarning
 from pamkin.functions import Constant, LinearFunction, MultiplierFunction, PolynomialFunction, SimmSpline
 from pamkin.osim import ConditionalPathPoint, MovingPathPoint, PathPoint, load_osim_file
@@ -127,6 +128,11 @@ def _all_functions_design(design):
     design = design.replace_pam(dataclasses.replace(gracilis, rollers=(
         Roller("p1->p2", "femur_r", (0.0, -0.1, -0.03), (1.0, 0.0, 0.0), (0.0, 0.0, -1.0), 0.008),
         Roller("p3->p4", "femur_r", (0.0, -0.42, -0.04), (1.0, 0.0, 0.0), (0.0, 0.0, -1.0), 0.01, 0.05))))
+    # a detour (pamkin.detour): a via point inserted on sartorius' tibia segment, its name dotted
+    sar = design.pam(6)
+    a, b = (np.array(sar.points[k].location) for k in (4, 5))
+    design = design.replace_pam(insert_via(sar, {4: [(a + b) / 2 + np.array([0.0, 0.0, -0.012])]}))
+    assert design.pam(6).points[5].name == "P3_0.P4_0.1"
     return dataclasses.replace(design, name="all_functions")
 
 
@@ -148,7 +154,7 @@ def test_opensim_path_lengths_match_pamkin(tmp_path, skeleton, robot_model):
     results = opensim_lengths(files, names, q, tmp_path)
     # the modified routes really differ, and the conditional point is both in and out of the path
     changed = ~np.isclose(results[0][0], results[1][0], rtol=0, atol=1e-6).all(axis=0)
-    assert sorted(np.flatnonzero(changed)) == [3, 8, 10, 11, 30, 35, 37, 38]   # pam04, 09, 11, 12, both sides
+    assert sorted(np.flatnonzero(changed)) == [3, 5, 8, 10, 11, 30, 32, 35, 37, 38]   # pam04, 06, 09, 11, 12, both sides
     ankle = q[:, names.index("ankle_angle_r")]
     assert ((ankle > -0.2) & (ankle < 0.1)).any() and ((ankle < -0.2) | (ankle > 0.1)).any()
     for design, (L_os, meta) in zip(designs, results):
