@@ -1427,6 +1427,22 @@ def _write_summary(out_dir: Path, summary: dict) -> None:
     atomic_write(out_dir / "summary.json", json.dumps(finite_or_none(summary), indent=2, allow_nan=False))
 
 
+def warm_seed(seed: Design, warm: Design) -> tuple[Design, set[int]]:
+    """``seed`` with every PAM it shares with ``warm`` (a finished run's design) replaced by the warm one, and
+    their ids. A warm route's rollers and detour via points are not kept (:func:`pamkin.detour.remove_via`:
+    the points the seed route does not have, their length off the tendon again): the roller stage
+    (``limits.rollers``) and the detours (``limits.detours``) place them again."""
+    from pamkin.detour import remove_via  # noqa: PLC0415
+
+    ids = set()
+    for p in warm.pams:
+        if p.id in {q.id for q in seed.pams}:
+            p = remove_via(p, {pt.name for pt in seed.pam(p.id).points})
+            seed = seed.replace_pam(dataclasses.replace(p, rollers=()))
+            ids.add(p.id)
+    return seed, ids
+
+
 def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, on_design=None) -> dict:
     """Run an optimisation into ``out_dir`` (created); optionally apply the result.
 
@@ -1447,16 +1463,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, o
     seed = load_design(cfg.design, **kw) if cfg.design else load_design(**kw)
     warm_ids: set[int] = set()
     if cfg.warm_start:
-        from pamkin.detour import remove_via  # noqa: PLC0415
-
-        warm = load_design(Path(cfg.warm_start) / "design.yaml", **kw)
-        for p in warm.pams:
-            if p.id in {q.id for q in seed.pams}:
-                # a warm route's rollers and detours are not kept: the roller stage (limits.rollers) and the
-                # detours (limits.detours) place them again
-                p = remove_via(p, {pt.name for pt in seed.pam(p.id).points})
-                seed = seed.replace_pam(dataclasses.replace(p, rollers=()))
-                warm_ids.add(p.id)
+        seed, warm_ids = warm_seed(seed, load_design(Path(cfg.warm_start) / "design.yaml", **kw))
     _STATE["warm_ids"] = warm_ids      # these actuators try their warm diameter and count first
     rolled = [p.id for p in seed.pams if p.rollers]
     if rolled:

@@ -216,3 +216,20 @@ def test_a_split_mount_segment_is_no_longer_named():
     kept = dataclasses.replace(pam, pam_on="p1->p2")
     new = insert_via(kept, v)
     assert new.pam_on == "p1->p2" and remove_via(new, {p.name for p in pam.points}).pam_on == "p1->p2"
+
+
+def test_a_warm_start_drops_the_detours_it_was_given():
+    """``pamkin optimize --warm-start RUN`` starts from RUN's routes without their via points (the run places
+    them again): the seed's point names, the tendon back to its length before the detour; the other PAMs of
+    the warm design as they are."""
+    from pamkin.optimize.run import warm_seed
+
+    seed = load_design("v2_seed")
+    sar = seed.pam(6)
+    detoured = insert_via(sar, {2: [np.array([0.0, -0.05, -0.05])], 3: [np.array([0.04, -0.08, 0.0])]})
+    warm = seed.replace_pam(detoured)
+    out, ids = warm_seed(seed, warm)
+    assert ids == {p.id for p in seed.pams}
+    assert [p.name for p in out.pam(6).points] == [p.name for p in sar.points]
+    assert out.pam(6).tendon_length_m == pytest.approx(sar.tendon_length_m, abs=1e-15)
+    assert out.pam(9) == seed.pam(9)
