@@ -897,6 +897,12 @@ def test_mount_stage_puts_the_pam_on_one_segment_of_the_fixed_route():
     assert eps.min() >= -festo.max_pretension(10) - 1e-6
     assert pam.resting_length_m < spanning.resting_length_m and pam.tendon_length_m > 0.05
     assert info["objective_after"] >= info["objective_before"] - 1e-9          # fewer choices: no better fit
+    # a segment that runs through its own bone, left to the detours, is never mounted on
+    cfg10 = RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 10.0})
+    _, other = mount_stage(prob, sol, seed, cfg10, model, rom, run_mod.solution_pam, blocked=frozenset({j}))
+    assert other.get("segment") != info["segment"]
+    _, none = mount_stage(prob, sol, seed, cfg10, model, rom, run_mod.solution_pam, blocked=frozenset({0, 1}))
+    assert not none["mounted"] and none["reason"] == "in bone" and "its own bone" in none["line"]
     kept, refused = mount_stage(prob, sol, seed, RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 0.0}),
                                 model, rom, run_mod.solution_pam)
     if info["cost"] > 0:
