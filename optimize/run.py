@@ -611,6 +611,7 @@ def _clear_actuator(k: int) -> ActuatorResult:
     q, n_right, bodies, radius, mount = _STATE["obstacles"][k]
     cuts = BoneCuts(pam, _STATE["human"], _STATE["bones"], q, n_right)
     cuts.set_obstacles(bodies, radius, mount)
+    cuts.detour_below = _detour_below(pam, prob, sol, cfg)       # as in the first pass's rounds
     lines = ["  PAM-PAM pass:"]
     best, measure, info = bone_stage(prob, sol, cuts, cfg.bone_rounds, lines)
     bone = _bone_info(cuts, sol, measure, info, first.bone.get("log", []) + lines, [p.name for p in pam.points])
