@@ -1438,7 +1438,10 @@ def warm_seed(seed: Design, warm: Design) -> tuple[Design, set[int]]:
     ids = set()
     for p in warm.pams:
         if p.id in {q.id for q in seed.pams}:
-            p = remove_via(p, {pt.name for pt in seed.pam(p.id).points})
+            try:
+                p = remove_via(p, {pt.name for pt in seed.pam(p.id).points})
+            except ValueError as e:      # a warm route with points the seed's does not have on other bodies
+                raise DataFileError(warm.path or "<warm start>", f"{e}: not a run of this seed design") from None
             seed = seed.replace_pam(dataclasses.replace(p, rollers=()))
             ids.add(p.id)
     return seed, ids

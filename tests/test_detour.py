@@ -233,3 +233,18 @@ def test_a_warm_start_drops_the_detours_it_was_given():
     assert [p.name for p in out.pam(6).points] == [p.name for p in sar.points]
     assert out.pam(6).tendon_length_m == pytest.approx(sar.tendon_length_m, abs=1e-15)
     assert out.pam(9) == seed.pam(9)
+
+
+def test_a_warm_start_from_another_seed_is_a_clear_error():
+    """A warm design whose route has points the seed's does not have, on another body than a detour's, is
+    refused naming the file and the points (not a traceback)."""
+    from pamkin.errors import DataFileError
+    from pamkin.optimize.run import warm_seed
+
+    seed = load_design("v2_seed")
+    sar = seed.pam(6)
+    odd = dataclasses.replace(sar, points=(sar.points[0], PathPoint("x", "femur_r", (0.0, -0.1, 0.0)),
+                                           *sar.points[1:]))
+    warm = dataclasses.replace(seed.replace_pam(odd), path="runs/other/design.yaml")
+    with pytest.raises(DataFileError, match=r"runs/other/design.yaml.*\['x'\].*not a run of this seed design"):
+        warm_seed(seed, warm)
