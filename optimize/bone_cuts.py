@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pamkin.detour import piece_clearance, same_body_segments
 from pamkin.errors import RangeWarning
 from pamkin.paths import PathSet
 from pamkin.rollers import roller_pieces
@@ -188,8 +189,6 @@ class BoneCuts:
         self.detour_below = 0.0
         #: segments that always see their own bone (the one the PAM body is being put on)
         self.keep: set[int] = set()
-        from pamkin.detour import same_body_segments  # noqa: PLC0415
-
         self._same_body = [a for a in same_body_segments(pam) if bones.meshes.get(pam.points[a].body)]
         self._own = {a: bones.bodies.index(pam.points[a].body) for a in self._same_body}
         self._frames = list(kin.frames)
@@ -305,8 +304,6 @@ class BoneCuts:
     def in_own_bone(self, loc: np.ndarray) -> list[int]:
         """Of :meth:`detoured`, the segments whose straight line enters their own bone (body frame, exact
         at 1 mm samples): they cannot hold the PAM body as they are."""
-        from pamkin.detour import piece_clearance  # noqa: PLC0415
-
         out = []
         for a in self.detoured(loc):
             body = self.pam.points[a].body

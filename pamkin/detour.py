@@ -48,19 +48,21 @@ BATCH = 8
 Distance = Callable[[np.ndarray], np.ndarray]
 
 
+def _params(length: float, step: float = STEP) -> np.ndarray:
+    """Parameters 0..1 of samples at most ``step`` apart along a piece ``length`` [m] long (both ends)."""
+    return np.linspace(0.0, 1.0, max(2, int(np.ceil(length / step)) + 1))
+
+
 def piece_clearance(A: np.ndarray, B: np.ndarray, distance: Distance) -> float:
     """Smallest signed distance [m] from the bone of samples every ``STEP`` along the straight piece A–B."""
-    n = max(2, int(np.ceil(np.linalg.norm(B - A) / STEP)) + 1)
-    t = np.linspace(0.0, 1.0, n)[:, None]
+    t = _params(float(np.linalg.norm(B - A)))[:, None]
     return float(np.min(distance(A + t * (B - A))))
 
 
 def _pieces_clearance(A: np.ndarray, B: np.ndarray, V: np.ndarray, distance: Distance) -> np.ndarray:
     """(M,) smallest signed distance of the pieces A–V[m] and V[m]–B, every candidate at once."""
-    la = np.linalg.norm(V - A, axis=1).max()
-    lb = np.linalg.norm(B - V, axis=1).max()
-    ta = np.linspace(0.0, 1.0, max(2, int(np.ceil(la / STEP)) + 1))
-    tb = np.linspace(0.0, 1.0, max(2, int(np.ceil(lb / STEP)) + 1))
+    ta = _params(float(np.linalg.norm(V - A, axis=1).max()))
+    tb = _params(float(np.linalg.norm(B - V, axis=1).max()))
     pa = A[None, None, :] + ta[None, :, None] * (V - A)[:, None, :]
     pb = V[:, None, :] + tb[None, :, None] * (B - V)[:, None, :]
     P = np.concatenate([pa, pb], axis=1)
@@ -79,9 +81,7 @@ def _one(A: np.ndarray, B: np.ndarray, distance: Distance, pieces: Distance) -> 
     else the one nearest to clear; ``(V, its pieces' clearance)``, None where no via point lies
     ``CLEARANCE``..``BRACKET`` off the bone (``distance``)."""
     L = float(np.linalg.norm(B - A))
-    n = max(2, int(np.ceil(L / STEP)) + 1)
-    t = np.linspace(0.0, 1.0, n)
-    S = A + t[:, None] * (B - A)
+    S = A + _params(L)[:, None] * (B - A)
     P = S[int(np.argmin(distance(S)))]
     u1, u2 = _basis((B - A) / L)
     th = np.linspace(0.0, 2 * np.pi, N_DIRECTIONS, endpoint=False)
@@ -247,8 +247,7 @@ def other_bones(bones, state, frames: list[str], body: str, A: np.ndarray, B: np
                 out[mask] = bones.signed_distance(sub, W, margin=NEAR, bodies=bodies, prune=True)[0]
         return out
 
-    n = max(2, int(np.ceil(np.linalg.norm(B - A) / (4 * STEP))) + 1)
-    line = A + np.linspace(0.0, 1.0, n)[:, None] * (B - A)
+    line = A + _params(float(np.linalg.norm(B - A)), 4 * STEP)[:, None] * (B - A)
     dmin = query(np.arange(len(R)), line).min(axis=1)
     near = np.flatnonzero(dmin < NEAR)
     if not len(near):

@@ -200,6 +200,13 @@ def test_detour_pass_carries_a_result_round_its_bone(model, bones, monkeypatch):
     assert "detours of actuator 6 Sartorius: p3->p4: 2 via points; p4->p5: 1 via point" in progress.getvalue()
     assert len(out.pam.points) > len(final.points) and out.pam.tendon_length_m > final.tendon_length_m
     assert out.bone["clear"] and R.bone_line(out.bone).startswith("clear"), R.bone_line(out.bone)
+    # round the tibia alone (no poses given) the same segments end up in the femur at a flexed knee
+    from pamkin.optimize.bone_cuts import BoneCuts, bone_check_poses
+
+    own_only, _ = detour_pam(final, bones)
+    q, n_right = bone_check_poses(model, rom, seed_design.pam(6), cfg.seed, crossed=data[0].crossed)
+    m = BoneCuts(own_only, model, bones, q, n_right).measure(np.array([p.location for p in own_only.points]))
+    assert m.violation() > 0 and "femur_r" in m.segment_bone, (m.segment_depth, m.segment_bone)
     qv, Tv = R._validation_set()
     crossed = list(data[0].crossed)
     np.testing.assert_allclose(validation_error(out.pam, model, qv, Tv, crossed, seed_design),
