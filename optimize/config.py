@@ -77,10 +77,12 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      their bone (smooth bone-distance splines, optimize.bracket)
     pam_clearance = false        # (v2, with bone_mesh) second pass: routes that hit another PAM's body are
                                  #      solved again with the first-pass bodies as obstacles
-    rollers = false              # (v2, with bone_mesh) last stage: an actuator failing an audit fit limit on the
+    rollers = true               # (v2, with bone_mesh) last stage: an actuator failing an audit fit limit on the
                                  #      validation poses gets rollers (cable guides on bone, pamkin.rollers) where
                                  #      its fit without the bone rows goes into bone, kept where they lower its
-                                 #      validation error and the route is clear (optimize.rollers)
+                                 #      validation error and the route is clear (optimize.rollers); a warm re-run
+                                 #      does not try again what its warm start's run tried without a gain;
+                                 #      bone_mesh = false switches it off unless it is set true
     detours = true               # (v2, with bone_mesh) a route segment between two points of one bone (a constant
                                  #      length) too short to hold the PAM body is left out of that bone's rows and
                                  #      afterwards carried round it by via points (pamkin.detour; the added length
@@ -162,7 +164,7 @@ def _is_number(v) -> bool:
 #: current design, capsule bone clearance, no unit budget. ``RunConfig(**FAST_FIT)``.
 FAST_FIT: dict = {"design": "", "multistart": 2, "max_solve_seconds": 0.0, "n_random": 0, "weight_mass": 0.0,
                   "rated_force": False, "bone_mesh": False, "max_units": 0, "sensitivity_pct": 0.0,
-                  "mount": False, "one_segment_actuators": []}
+                  "mount": False, "one_segment_actuators": [], "rollers": False}
 
 #: Actuators of the v2 seed solved with the one-segment rows by default (``one_segment_actuators``).
 ONE_SEGMENT_ACTUATORS = (13, 14)
@@ -215,7 +217,7 @@ class RunConfig:
     bone_seed_start: bool = True
     bracket_fit: bool = False
     pam_clearance: bool = False
-    rollers: bool = False
+    rollers: bool = True
     detours: bool = True
     max_units: int = 60
     walking_min: float = 0.9
@@ -435,6 +437,8 @@ def load_config(path: str | Path | None) -> RunConfig:
             kwargs[key] = value
         else:
             raise DataFileError(str(path), f"unknown key {key!r}; known: {sorted(top | set(_SECTIONS))}")
+    if kwargs.get("bone_mesh") is False:
+        kwargs.setdefault("rollers", False)     # the roller stage needs the meshes: off with them unless asked for
     try:
         cfg = RunConfig(**kwargs, source=str(path))
     except TypeError as e:

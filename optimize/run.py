@@ -701,8 +701,9 @@ def _roller_actuator(k: int) -> ActuatorResult:
     lines = [f"  roller stage of actuator {r.id} {r.name}:"]
 
     def keep(why: str) -> ActuatorResult:
-        out = dataclasses.replace(r, bone=dict(r.bone, log=list(r.bone.get("log", [])) + lines + [f"    kept "
-                                  f"without rollers: {why}"]), seconds=r.seconds + time.perf_counter() - t0)
+        out = dataclasses.replace(r, bone=dict(r.bone, roller_stage=f"without rollers: {why}", log=list(
+            r.bone.get("log", [])) + lines + [f"    kept without rollers: {why}"]),
+            seconds=r.seconds + time.perf_counter() - t0)
         return out
 
     nr0, w0 = error(r.pam)
@@ -787,7 +788,7 @@ def _roller_actuator(k: int) -> ActuatorResult:
         "objective": sol1.objective, "feasible": bool(sol1.success), "seconds": round(time.perf_counter() - t0, 3),
         "relaxed": sorted(relax)}], t0 - r.seconds,
         {**r.bone, **measure.summary([p.name for p in data.pam.points]), "clear": bool(measure.violation() == 0.0),
-         "rollers": [rol.segment for rol in pam1.rollers],
+         "rollers": [rol.segment for rol in pam1.rollers], "roller_stage": "kept",
          "log": list(r.bone.get("log", [])) + lines + ["    kept with rollers"]}, r.mount)
     out.pam = dataclasses.replace(out.pam, rollers=pam1.rollers)
     out.skipped, out.warm = r.skipped, r.warm
@@ -858,7 +859,9 @@ def detour_pass(results: list[ActuatorResult], cfg: RunConfig, stream=None) -> l
 def roller_pass(results: list[ActuatorResult], cfg: RunConfig, stream=None) -> list[ActuatorResult]:
     """The roller stage (:mod:`optimize.rollers`) for every actuator whose result fails the audit's fit limits
     (primary NRMSE or worst coordinate error) on the run's validation poses; progress on ``stream`` (default:
-    standard error at the call)."""
+    standard error at the call). In a warm re-run, an actuator whose warm start's run tried it and kept it
+    without rollers is not tried again (:func:`warm_roller_outcomes`): the stage's cost is then that of the
+    actuators it gave rollers."""
     stream = stream or sys.stderr
     from pamkin.audit import load_limits  # noqa: PLC0415
 
@@ -874,6 +877,17 @@ def roller_pass(results: list[ActuatorResult], cfg: RunConfig, stream=None) -> l
                                  _STATE["seed_design"])
         if nr > thr["nrmse_good"] or w > thr["worst_coordinate_error_good"]:
             todo.append(k)
+    warm = warm_roller_outcomes(Path(cfg.warm_start)) if cfg.warm_start else {}
+    again = [k for k in todo if results[k].id in _STATE.get("warm_ids", ()) and
+             warm.get(results[k].id, "kept") != "kept"]
+    if again:
+        print("rollers: not tried again (the warm start's run tried them without a gain): " +
+              ", ".join(f"{results[k].id} {results[k].name}" for k in again), file=stream, flush=True)
+        todo = [k for k in todo if k not in again]
+        results = [dataclasses.replace(r, bone=dict(                 # carried on, for a warm re-run from this one
+            r.bone or {}, roller_stage=warm[r.id], log=list((r.bone or {}).get("log", [])) + [
+                f"  roller stage of actuator {r.id} {r.name}: not tried again: the warm start's run kept it "
+                f"{warm[r.id]}"])) if k in again else r for k, r in enumerate(results)]
     if not todo:
         return results
     print(f"rollers: {len(todo)} actuators fail a fit limit on the validation poses: trying rollers", file=stream,
@@ -883,6 +897,21 @@ def roller_pass(results: list[ActuatorResult], cfg: RunConfig, stream=None) -> l
     for r in _map(_roller_actuator, todo, cfg, stream):
         out[next(k for k in todo if results[k].id == r.id)] = r
     return out
+
+
+def warm_roller_outcomes(run_dir: Path) -> dict[int, str]:
+    """What the roller stage of the run in ``run_dir`` did with each actuator it tried (its ``summary.json``):
+    ``"kept"`` or ``"without rollers: <why>"``, by actuator id; empty where that run had no roller stage or
+    wrote no summary. A warm re-run's roller stage does not try again the actuators its warm start's run tried
+    without a gain (their warm routes are that run's results)."""
+    path = run_dir / "summary.json"
+    if not path.is_file():
+        return {}
+    try:
+        bone = json.loads(path.read_text()).get("bone_mesh") or {}
+        return {int(k): str(v["roller_stage"]) for k, v in bone.items() if "roller_stage" in v}
+    except (ValueError, AttributeError, TypeError) as e:
+        raise DataFileError(str(path), f"not a pamkin optimize summary ({e})") from None
 
 
 def mount_lines(results: list[ActuatorResult], cfg: RunConfig) -> list[str]:

@@ -171,6 +171,7 @@ def test_apply_and_warm_start(tmp_path, monkeypatch):
     ("workers = \n", "not valid TOML"),
     ("max_solve_seconds = -1\n", "max_solve_seconds: must be >= 0"),
     ("[limits]\nbone_mesh = false\npam_clearance = true\n", "pam_clearance: needs limits.bone_mesh"),
+    ("[limits]\nbone_mesh = false\nrollers = true\n", "rollers: needs limits.bone_mesh"),
     ("[limits]\nbone_mesh = 1\n", "limits.bone_mesh: must be true or false"),
     ("[limits]\none_segment_actuators = [0]\n", "limits.one_segment_actuators: must be distinct actuator ids"),
     ("[limits]\none_segment_actuators = 13\n", "limits.one_segment_actuators: must be a list of integers"),
@@ -184,6 +185,19 @@ def test_bad_config(tmp_path, text, match):
     f.write_text(text)
     with pytest.raises(DataFileError, match=match):
         load_config(f)
+
+
+def test_roller_stage_follows_the_bone_meshes(tmp_path):
+    """The roller stage is on by default and needs the bone meshes: a run description that switches the
+    meshes off switches it off too unless it asks for it (then the error above)."""
+    f = tmp_path / "run.toml"
+    assert RunConfig().rollers and not RunConfig(**FAST_FIT).rollers
+    f.write_text("[limits]\nbone_mesh = false\n")
+    assert not load_config(f).rollers
+    f.write_text("[limits]\nrollers = false\n")
+    assert not load_config(f).rollers and load_config(f).bone_mesh
+    f.write_text("workers = 1\n")
+    assert load_config(f).rollers
 
 
 def test_one_segment_actuators_must_name_actuators_of_the_design(tmp_path):

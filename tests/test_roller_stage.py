@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import io
+import json
 import warnings
 
 import numpy as np
@@ -14,7 +15,7 @@ import pytest
 import pamkin
 from pamkin.audit import random_poses
 from pamkin.design import Design, load_design
-from pamkin.errors import RangeWarning
+from pamkin.errors import DataFileError, RangeWarning
 from pamkin.optimize.config import FAST_FIT, RunConfig
 from pamkin.optimize.problem import ActuatorProblem
 from pamkin.optimize.roller_model import roller_length_numeric
@@ -169,12 +170,13 @@ INTERNAL_OBLIQUE = {
                 "location": [0.0961037602067311, 0.21000000689523302, 0.01599999013826773]}]}
 
 
-def test_roller_stage_gives_internal_oblique_a_roller(skel, monkeypatch):
+def test_roller_stage_gives_internal_oblique_a_roller(skel, monkeypatch, tmp_path):
     """The stage on internal oblique's finished result (the default config's problem, one worker): its fit
     without the bone rows passes 3 mm through the pelvis, a roller there carries it; the result is clear of
     bone at every bone-check pose (exact: OpenSim's wrapping, the meshes), its roller 3 mm off the pelvis,
     and its validation error falls by more than the stage's margin (0.19 / 0.29 -> 0.12 / 0.22 measured);
-    a result that already passes is left alone."""
+    a result that already passes is left alone; in a warm re-run, one its warm start's run tried without a
+    gain is not tried again (and the outcome carried on), and a broken warm summary is a clear error."""
     from pamkin.bones import BoneSet
     from pamkin.design import design_from_dict
     from pamkin.optimize import run as R
@@ -208,10 +210,28 @@ def test_roller_stage_gives_internal_oblique_a_roller(skel, monkeypatch):
     dep = depths(out.pam, human, R._STATE["bones"], q, seed_design, n_right)
     assert dep.clear() and 0.002 < dep.roller_bone[0] < 0.005
     assert out.bone["clear"] and out.bone["rollers"] == ["p1->p2"] and out.bone["max_segment_penetration_mm"] == 0
-    assert R.bone_line(out.bone).startswith("clear")
+    assert R.bone_line(out.bone).startswith("clear") and out.bone["roller_stage"] == "kept"
     qv, Tv = R._validation_set()
     before = sum(validation_error(final, human, qv, Tv, list(data[0].crossed), seed_design))
     after = sum(validation_error(out.pam, human, qv, Tv, list(data[0].crossed), seed_design))
     assert after < before - MIN_GAIN
     # a result that passes both fit limits is not tried
     assert R.roller_pass([out], cfg, progress)[0] is out
+    # a warm re-run: what the warm start's run did with it decides (tried there without a gain: not again)
+    assert R.warm_roller_outcomes(tmp_path) == {}                       # no summary: as a cold run
+    (tmp_path / "summary.json").write_text(json.dumps({"bone_mesh": {"2": {"roller_stage": "kept"}}}))
+    assert R.warm_roller_outcomes(tmp_path) == {2: "kept"}
+    why = "without rollers: no clear route with rollers"
+    (tmp_path / "summary.json").write_text(json.dumps({"bone_mesh": {"2": {"roller_stage": why}, "3": {}}}))
+    assert R.warm_roller_outcomes(tmp_path) == {2: why}
+    warm_cfg = RunConfig(rollers=True, workers=1, warm_start=str(tmp_path))
+    R._STATE["warm_ids"] = {2}
+    progress = io.StringIO()
+    again = R.roller_pass([given], warm_cfg, progress)[0]
+    assert "not tried again (the warm start's run tried them without a gain): 2 Internal Oblique" in \
+        progress.getvalue() and "trying rollers" not in progress.getvalue()
+    assert again.pam is given.pam and again.bone["roller_stage"] == why and "not tried again" in again.bone["log"][-1]
+    R._STATE["warm_ids"] = set()                                       # not a warm-started actuator: tried
+    (tmp_path / "summary.json").write_text("{not json")
+    with pytest.raises(DataFileError, match="summary.json"):
+        R.warm_roller_outcomes(tmp_path)
