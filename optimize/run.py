@@ -843,6 +843,8 @@ def detour_pass(results: list[ActuatorResult], cfg: RunConfig, stream=None) -> l
             continue
         names = segment_names(r.pam)
         cuts = BoneCuts(new, human, bones, q, n_right)
+        new_names = segment_names(new)         # a rollered segment is measured on its pieces round the roller
+        cuts.rollers = {new_names.index(rol.segment): rol for rol in new.rollers}
         loc = np.array([p.location if hasattr(p, "location") else (0.0, 0.0, 0.0) for p in new.points])
         m = cuts.measure(loc)
         what = "; ".join(f"{names[a]}: {v}" for a, v in sorted(outcome.items()))

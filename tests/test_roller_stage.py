@@ -235,3 +235,39 @@ def test_roller_stage_gives_internal_oblique_a_roller(skel, monkeypatch, tmp_pat
     (tmp_path / "summary.json").write_text("{not json")
     with pytest.raises(DataFileError, match="summary.json"):
         R.warm_roller_outcomes(tmp_path)
+
+
+def test_detour_pass_measures_a_rollered_segment_round_its_roller(monkeypatch):
+    """The detour pass re-checks a route after its detours against every bone: a segment with a roller is
+    measured on its straight pieces round the roller (as the roller stage's exact check), not as the straight
+    line the roller lifts out of the bone. The femoral-shaft toy with its roller; a stand-in detour that
+    changes nothing makes the pass measure it."""
+    import pamkin.detour as detour_mod
+    from pamkin.bones import BoneSet
+    from pamkin.design import Pam
+    from pamkin.optimize import run as R
+    from pamkin.optimize.bone_cuts import bone_check_poses
+    from pamkin.osim import PathPoint
+
+    human = pamkin.gait2392()
+    rom = load_rom("robot_thesis", "r")
+    seed_design = load_design("v2_seed", bodies=human.bodies)
+    cfg = RunConfig(workers=1)
+    data = [actuator_data(seed_design.pam(10), human, rom, cfg, seed_design.fitting_length_m)]
+    bones = BoneSet(human)
+    monkeypatch.setattr(R, "_STATE", {})
+    R._STATE.update(cfg=cfg, data=data, human=human, rom=rom, bones=bones, seed_design=seed_design)
+    pam = Pam(10, "toy", ("bifemsh_r",), "knee_angle_r", (), 20, 1, 0.02, 0.0,
+              (PathPoint("a", "femur_r", (0.025, -0.20, 0.03)), PathPoint("b", "femur_r", (0.025, -0.30, -0.03))))
+    q, n_right = bone_check_poses(human, rom, data[0].pam, cfg.seed, crossed=data[0].crossed)
+    straight = depths(pam, human, bones, q, seed_design, n_right).segment_depth[0]
+    rol = place(bones, human, q[:1], pam, 0, depths(pam, human, bones, q[:1], seed_design).deepest[0])
+    rolled = dataclasses.replace(pam, rollers=(rol,))
+    guided = depths(rolled, human, bones, q, seed_design, n_right).segment_depth[0]
+    assert straight > 0.003 and guided < 0.5 * straight           # the roller lifts it most of the way out
+    monkeypatch.setattr(detour_mod, "same_body_segments", lambda p: [0])
+    monkeypatch.setattr(detour_mod, "detour_pam", lambda p, *a, **k: (p, {0: "stand-in"}))
+    given = R.ActuatorResult(10, "toy", rolled, "given", True, z=np.zeros(1), bone={"log": []})
+    out = R.detour_pass([given], cfg, io.StringIO())[0]
+    assert out.bone["detours"] == {"a->b": "stand-in"}
+    assert out.bone["max_segment_penetration_mm"] == pytest.approx(1e3 * guided, abs=0.5)
