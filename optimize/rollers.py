@@ -18,7 +18,7 @@ this stage
    segment's rows), and checks the result exactly (OpenSim's wrapping, the bone meshes, every bone-check
    pose): every straight piece within the limit, every attachment point and roller outside its bone and
    within the bracket distance; a piece still too deep moves its roller out by half the depth (up to
-   :data:`PLACE_ROUNDS` rounds);
+   :data:`PLACE_ROUNDS` rounds), unless the fit with the rollers is already no better than the result's;
 4. keeps the rollers where the validation error (primary NRMSE + worst coordinate error) falls by more than
    :data:`MIN_GAIN`; otherwise the result stays as it was.
 

@@ -176,7 +176,8 @@ def test_roller_stage_gives_internal_oblique_a_roller(skel, monkeypatch, tmp_pat
     bone at every bone-check pose (exact: OpenSim's wrapping, the meshes), its roller 3 mm off the pelvis,
     and its validation error falls by more than the stage's margin (0.19 / 0.29 -> 0.12 / 0.22 measured);
     a result that already passes is left alone; in a warm re-run, one its warm start's run tried without a
-    gain is not tried again (and the outcome carried on), and a broken warm summary is a clear error."""
+    gain is not tried again (and the outcome carried on), and a broken warm summary is a clear error; a
+    roller that leaves the route in bone and fits no better gets no second placement round."""
     from pamkin.bones import BoneSet
     from pamkin.design import design_from_dict
     from pamkin.optimize import run as R
@@ -235,6 +236,20 @@ def test_roller_stage_gives_internal_oblique_a_roller(skel, monkeypatch, tmp_pat
     (tmp_path / "summary.json").write_text("{not json")
     with pytest.raises(DataFileError, match="summary.json"):
         R.warm_roller_outcomes(tmp_path)
+    # a roller that leaves the route in bone and fits no better than the result without it: no second round
+    import pamkin.optimize.rollers as rollers_mod
+    real = rollers_mod.depths
+
+    def deeper(pam, *a, **k):          # every piece 5 mm deeper than it is where the route has rollers
+        d = real(pam, *a, **k)
+        return dataclasses.replace(d, segment_depth=d.segment_depth + 0.005) if pam.rollers else d
+
+    monkeypatch.setattr(rollers_mod, "depths", deeper)
+    worse = R.roller_pass([dataclasses.replace(given, objective=0.05)], cfg, io.StringIO())[0]
+    assert not worse.pam.rollers and worse.bone["log"][-2].endswith("round 1: objective 0.08061, deepest piece "
+                                                                    "5.0 mm, rollers 3.1 mm off bone"), worse.bone["log"]
+    assert worse.bone["roller_stage"] == ("without rollers: with rollers the route is not clear and fits no better "
+                                          "(objective 0.05 -> 0.08061)")
 
 
 def test_detour_pass_measures_a_rollered_segment_round_its_roller(monkeypatch):
