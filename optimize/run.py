@@ -766,7 +766,7 @@ def _roller_actuator(k: int) -> ActuatorResult:
             break
         if r.objective is not None and sol1.objective >= r.objective:
             # not clear, and fitting worse than the result without rollers: moving the rollers out only moves
-            # the cable further from the fit's line (measured: tensor fasciae latae's second round capped, 38 s)
+            # the cable further from the fit's line (measured: tensor fasciae latae's second round capped, 15 s)
             return keep(f"with rollers the route is not clear and fits no better (objective {r.objective:.4g} -> "
                         f"{sol1.objective:.4g})")
         for j, depth in enumerate(dep1.segment_depth):     # move a roller out, or add one, where too deep
