@@ -271,15 +271,20 @@ def torque_metrics(th: np.ndarray, tr: np.ndarray, prim: int, coords: list[int],
     ``nrmse`` = RMS error about the primary coordinate ``prim`` ÷ the human peak about it, and per
     coordinate of ``coords`` (indices into ``names``) the same ratio (``coordinate_errors``), the worst of them
     (``worst_coordinate``, ``worst_coordinate_error``), the peaks, and the force scale that would fit the primary
-    coordinate best with the NRMSE there (``best_force_scale``, ``nrmse_at_best_scale``, :func:`best_force_scale`).
-    Where the human has no torque about
+    coordinate best with the NRMSE there (``best_force_scale``, ``nrmse_at_best_scale``, :func:`best_force_scale`)
+    and the worst coordinate error at that scale (``worst_at_best_scale``, about ``worst_coordinate_at_best_scale``:
+    the same force scales every coordinate's torque). Where the human has no torque about
     ``prim`` on these samples the ratios are undefined (nan; the audit's summary counts them as failing)."""
     peak = float(np.max(np.abs(th[:, prim]))) if len(th) else 0.0
     err = {names[c]: _rms(tr[:, c] - th[:, c]) / peak if peak > 0 else float("nan") for c in coords}
     worst = max(err, key=lambda c: (err[c] if np.isfinite(err[c]) else -1)) if err else ""
     scale, scaled = best_force_scale(th[:, prim], tr[:, prim])
+    at = {names[c]: _rms(scale * tr[:, c] - th[:, c]) / peak if peak > 0 and np.isfinite(scale) else float("nan")
+          for c in coords}
+    worst_at = max(at, key=lambda c: (at[c] if np.isfinite(at[c]) else -1)) if at else ""
     return {"nrmse": err.get(names[prim], float("nan")), "human_peak_Nm": peak,
             "best_force_scale": scale, "nrmse_at_best_scale": scaled / peak if peak > 0 else float("nan"),
+            "worst_at_best_scale": at.get(worst_at, float("nan")), "worst_coordinate_at_best_scale": worst_at,
             "robot_peak_Nm": float(np.max(np.abs(tr[:, prim]))) if len(tr) else 0.0,
             "coordinate_errors": err, "worst_coordinate": worst, "worst_coordinate_error": err.get(worst, float("nan")),
             "worst_robot_Nm": float(np.max(np.abs(tr[:, names.index(worst)]))) if worst else 0.0,
@@ -368,6 +373,8 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
             row[f"{key}_worst_human_peak_Nm"] = m["worst_human_Nm"]
             row[f"{key}_best_force_scale"] = m["best_force_scale"]
             row[f"{key}_nrmse_at_best_scale"] = m["nrmse_at_best_scale"]
+            row[f"{key}_worst_at_best_scale"] = m["worst_at_best_scale"]
+            row[f"{key}_worst_coordinate_at_best_scale"] = m["worst_coordinate_at_best_scale"]
             row[f"{key}_dead_zone_fraction"] = float(np.mean(~st.in_range[:, k]))
         if "gait" in pam_state:   # the left PAM on the left leg's gait
             row["gait_dead_zone_fraction_left"] = float(np.mean(~pam_state["gait"].in_range[:, k + n]))

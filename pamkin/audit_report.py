@@ -82,7 +82,7 @@ def scorecard_text(res) -> str:
               f"max bracket {_fmt(1000 * sm['max_bracket_m'])} mm, max force ratio {_fmt(sm['max_force_ratio'])}, "
               f"total PAM length {_fmt(sm['total_pam_length_m'])} m, air {_fmt(sm['air_volume_l'])} l, "
               f"mass {_fmt(sm['mass_kg'])} kg (assumed Festo weights)",
-              *force_level_lines(res.pams, thr["nrmse_good"]),
+              *force_level_lines(res.pams, thr["nrmse_good"], thr["worst_coordinate_error_good"]),
               *(["pam_at not possible (the route on that side of the mount segment changes length, or the PAM is "
                  "not on one segment), ignored: " + ", ".join(
                      f"{r['id']} {r['name']} ({r['pam_at_not_possible']})" for r in res.pams if r.get("pam_at_not_possible"))]
@@ -102,22 +102,34 @@ def scorecard_text(res) -> str:
     return "\n".join(lines) + "\n"
 
 
-def force_level_lines(rows: list[dict], limit: float) -> list[str]:
+def force_level_lines(rows: list[dict], limit: float, worst_limit: float = float("inf")) -> list[str]:
     """The scorecard's line on the PAMs over the NRMSE ``limit``: the force scale that would fit each best
-    (``random_best_force_scale``) and the NRMSE there — a miss that passes there is the PAM's force level (size,
-    count, pressure), one that does not is the shape of its torque over the poses (route, force-length).
-    Empty where none is over the limit (or the audit predates these numbers)."""
+    (``random_best_force_scale``), the NRMSE there and, where the audit has it, the worst coordinate error
+    there (the same scale multiplies every coordinate's torque) — a miss within ``limit`` and ``worst_limit``
+    there is the PAM's force level (size, count, pressure); one that is not is the shape of its torque over
+    the poses or across its coordinates (route, force-length). Empty where none is over the limit (or the
+    audit predates these numbers)."""
     def num(v) -> float:               # audit.json writes an undefined number as null
         return float("nan") if v is None else float(v)
 
     over = [r for r in rows if not num(r.get("random_nrmse")) <= limit and "random_best_force_scale" in r]
     if not over:
         return []
-    level = [r for r in over if num(r.get("random_nrmse_at_best_scale")) <= limit]
-    return [f"force level of the {len(over)} PAMs over the NRMSE limit (torque x s fits best; NRMSE at s): "
-            + ", ".join(f"{r['id']} {r['name']} x{_fmt(r['random_best_force_scale'])} ({_fmt(r['random_nrmse_at_best_scale'])})"
-                        for r in over)
-            + f"; within {limit:g} at s: {len(level)}" + (" (" + ", ".join(str(r["id"]) for r in level) + ")" if level else "")]
+
+    def at_scale(r: dict) -> str:
+        if "random_worst_at_best_scale" not in r:
+            return _fmt(r["random_nrmse_at_best_scale"])
+        return (f"{_fmt(r['random_nrmse_at_best_scale'])}; worst {_fmt(r['random_worst_at_best_scale'])} "
+                f"{r.get('random_worst_coordinate_at_best_scale') or ''}".rstrip())
+
+    level = [r for r in over if num(r.get("random_nrmse_at_best_scale")) <= limit
+             and not num(r.get("random_worst_at_best_scale", 0.0)) > worst_limit]
+    both = f" and worst within {worst_limit:g}" if np.isfinite(worst_limit) else ""
+    return [f"force level of the {len(over)} PAMs over the NRMSE limit (torque x s fits the primary coordinate "
+            "best; NRMSE and worst coordinate error at s): "
+            + ", ".join(f"{r['id']} {r['name']} x{_fmt(r['random_best_force_scale'])} ({at_scale(r)})" for r in over)
+            + f"; within {limit:g}{both} at s: {len(level)}"
+            + (" (" + ", ".join(str(r["id"]) for r in level) + ")" if level else "")]
 
 
 def side_by_side(results: list, labels: list[str]) -> str:

@@ -376,6 +376,7 @@ def test_off_axis_torque_of_a_two_point_pam_by_hand(skel):
     assert row["random_coordinate_errors"]["lumbar_extension"] > 0.1
     # the best force scale can only lower the primary error (least squares over s, s = 1 included)
     assert row["random_nrmse_at_best_scale"] <= row["random_nrmse"] and row["random_best_force_scale"] > 0
+    assert row["random_worst_at_best_scale"] >= row["random_nrmse_at_best_scale"] - 1e-12   # the primary is one
 
 
 def test_best_force_scale_by_hand():
@@ -394,6 +395,9 @@ def test_best_force_scale_by_hand():
     assert np.isnan(s0) and e0 == pytest.approx(np.sqrt(np.mean(th ** 2)))
     m = torque_metrics(np.stack([th, th], 1), np.stack([0.5 * th, th], 1), 0, [0, 1], ["a", "b"])
     assert m["best_force_scale"] == pytest.approx(2.0) and m["nrmse_at_best_scale"] == pytest.approx(0.0, abs=1e-12)
+    # x2 fixes "a" and doubles "b" (robot = human there): its error becomes the human's own RMS / peak
+    assert m["worst_coordinate_at_best_scale"] == "b"
+    assert m["worst_at_best_scale"] == pytest.approx(np.sqrt(np.mean(th ** 2)) / 3.0, rel=1e-12)
     assert m["nrmse"] == pytest.approx(np.sqrt(np.mean((0.5 * th) ** 2)) / 3.0)
 
 
@@ -418,6 +422,16 @@ def test_force_level_line_names_the_misses():
     (line,) = force_level_lines([undefined], 0.15)
     assert "7 None x- (-)" in line and line.endswith("within 0.15 at s: 0")
     assert force_level_lines([{k: v for k, v in rows[0].items() if "scale" not in k}], 0.15) == []
+    # with the worst coordinate error at the scale: a PAM whose primary passes there but another coordinate
+    # goes over the worst limit is not a force-level miss
+    rows[0].update(random_worst_at_best_scale=1.17, random_worst_coordinate_at_best_scale="hip_adduction_r")
+    rows[1].update(random_worst_at_best_scale=0.4, random_worst_coordinate_at_best_scale="knee_angle_r")
+    (line,) = force_level_lines(rows, 0.15, 0.25)
+    assert "4 Biceps x3.91 (0.12; worst 1.17 hip_adduction_r)" in line and "9 Gracilis x1.36 (0.32; worst 0.4 " \
+        "knee_angle_r)" in line
+    assert line.endswith("within 0.15 and worst within 0.25 at s: 0")
+    rows[0]["random_worst_at_best_scale"] = 0.2
+    assert force_level_lines(rows, 0.15, 0.25)[0].endswith("within 0.15 and worst within 0.25 at s: 1 (4)")
 
 
 def test_undefined_error_fails_and_is_strict_json():
