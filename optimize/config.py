@@ -77,12 +77,12 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      their bone (smooth bone-distance splines, optimize.bracket)
     pam_clearance = false        # (v2, with bone_mesh) second pass: routes that hit another PAM's body are
                                  #      solved again with the first-pass bodies as obstacles
-    rollers = true               # (v2, with bone_mesh) last stage: an actuator failing an audit fit limit on the
+    rollers = false              # (v2, with bone_mesh) last stage: an actuator failing an audit fit limit on the
                                  #      validation poses gets rollers (cable guides on bone, pamkin.rollers) where
-                                 #      its fit without the bone rows goes into bone, kept where they lower its
-                                 #      validation error and the route is clear (optimize.rollers); a warm re-run
-                                 #      does not try again what its warm start's run tried without a gain;
-                                 #      bone_mesh = false switches it off unless it is set true
+                                 #      its fit without the bone rows goes into bone, long enough that the cable
+                                 #      never slips off an end, kept where they lower its validation error and the
+                                 #      route is clear (optimize.rollers); a warm re-run does not try again what its
+                                 #      warm start's run tried without a gain
     detours = true               # (v2, with bone_mesh) a route segment between two points of one bone (a constant
                                  #      length) too short to hold the PAM body is left out of that bone's rows and
                                  #      afterwards carried round it by via points (pamkin.detour; the added length
@@ -217,7 +217,7 @@ class RunConfig:
     bone_seed_start: bool = True
     bracket_fit: bool = False
     pam_clearance: bool = False
-    rollers: bool = True
+    rollers: bool = False
     detours: bool = True
     max_units: int = 60
     walking_min: float = 0.9

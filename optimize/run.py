@@ -680,7 +680,8 @@ def _roller_actuator(k: int) -> ActuatorResult:
     with rollers where it lowers the validation error, else the result as it was (its log says why)."""
     from .bone_cuts import BoneCuts, bone_check_poses, bone_stage  # noqa: PLC0415
     from .problem import FEASIBILITY_TOL, ActuatorProblem  # noqa: PLC0415
-    from .rollers import DEPTH_LIMIT, MAX_DEPTH, MIN_GAIN, PLACE_ROUNDS, depths, place, roller_data  # noqa: PLC0415
+    from .rollers import (DEPTH_LIMIT, GAP, LENGTHS, MAX_DEPTH, MIN_GAIN, OPEN_LENGTH, PLACE_ROUNDS,  # noqa: PLC0415
+                          depths, place, roller_data, size_rollers)
     from .validation import validation_error  # noqa: PLC0415
 
     t0 = time.perf_counter()
@@ -739,7 +740,8 @@ def _roller_actuator(k: int) -> ActuatorResult:
     L_prev = prob.lengths(z)
     found = None
     for rnd in range(PLACE_ROUNDS):
-        rd = [roller_data(data, human, rol, j) for j, rol in sorted(rollers.items())]
+        rd = [roller_data(data, human, dataclasses.replace(rol, length_m=OPEN_LENGTH), j)     # open-ended
+              for j, rol in sorted(rollers.items())]
         prob1 = ActuatorProblem(data, cfg, d, seed, regions, relax, bracket, mount, rollers=rd)
         z0 = z.copy()
         L_new = prob1.lengths(z0)
@@ -755,12 +757,17 @@ def _roller_actuator(k: int) -> ActuatorResult:
         cuts.rollers = dict(rollers)
         sol1, _, _ = bone_stage(prob1, sol1, cuts, cfg.bone_rounds)
         z, L_prev = sol1.z, prob1.lengths(sol1.z)
-        pam1 = dataclasses.replace(solution_pam(data.pam, prob1.finalize(sol1)),
-                                   rollers=tuple(rol for _, rol in sorted(rollers.items())))
+        pam1 = size_rollers(dataclasses.replace(solution_pam(data.pam, prob1.finalize(sol1)),
+                                                rollers=tuple(rol for _, rol in sorted(rollers.items()))),
+                            human, np.concatenate([q_bone, q_val]), design)
+        if pam1 is None:
+            return keep(f"the cable would slip off a roller's end even {1e3 * LENGTHS[-1]:g} mm long")
+        rollers = {j: next(r for r in pam1.rollers if r.segment == rollers[j].segment) for j in rollers}
         dep1 = depths(pam1, human, bones, q_bone, design, n_right)
         lines.append(f"    with rollers on {where}, round {rnd + 1}: objective {sol1.objective:.4g}, deepest piece "
                      f"{1e3 * dep1.segment_depth.max():.1f} mm, rollers "
-                     f"{', '.join(f'{1e3 * x:.1f}' for x in dep1.roller_bone)} mm off bone")
+                     f"{', '.join(f'{1e3 * x:.1f}' for x in dep1.roller_bone)} mm off bone, "
+                     f"{', '.join(f'{1e3 * r.length_m:g}' for r in pam1.rollers)} mm long")
         if dep1.clear():
             found = (pam1, prob1, sol1, cuts.measure(np.array(sol1.points)))
             break
@@ -769,6 +776,11 @@ def _roller_actuator(k: int) -> ActuatorResult:
             # the cable further from the fit's line (measured: tensor fasciae latae's second round capped, 15 s)
             return keep(f"with rollers the route is not clear and fits no better (objective {r.objective:.4g} -> "
                         f"{sol1.objective:.4g})")
+        for j, room in zip(sorted(rollers), dep1.roller_bone):     # a roller (its sized length) into its bone: out
+            if room < 0:
+                rol = rollers[j]
+                rollers[j] = dataclasses.replace(rol, centre=tuple(float(c + (GAP - room) * s_) for c, s_ in
+                                                                   zip(rol.centre, rol.side)))
         for j, depth in enumerate(dep1.segment_depth):     # move a roller out, or add one, where too deep
             if depth <= DEPTH_LIMIT or j == mount:
                 continue

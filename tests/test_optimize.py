@@ -188,16 +188,14 @@ def test_bad_config(tmp_path, text, match):
 
 
 def test_roller_stage_follows_the_bone_meshes(tmp_path):
-    """The roller stage is on by default and needs the bone meshes: a run description that switches the
-    meshes off switches it off too unless it asks for it (then the error above)."""
+    """The roller stage needs the bone meshes: a run description that switches the meshes off switches it off
+    too unless it asks for it (then the error above); off by default."""
     f = tmp_path / "run.toml"
-    assert RunConfig().rollers and not RunConfig(**FAST_FIT).rollers
+    assert not RunConfig().rollers and not RunConfig(**FAST_FIT).rollers
     f.write_text("[limits]\nbone_mesh = false\n")
     assert not load_config(f).rollers
-    f.write_text("[limits]\nrollers = false\n")
-    assert not load_config(f).rollers and load_config(f).bone_mesh
-    f.write_text("workers = 1\n")
-    assert load_config(f).rollers
+    f.write_text("[limits]\nrollers = true\n")
+    assert load_config(f).rollers and load_config(f).bone_mesh
 
 
 def test_one_segment_actuators_must_name_actuators_of_the_design(tmp_path):

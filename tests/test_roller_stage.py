@@ -170,20 +170,19 @@ INTERNAL_OBLIQUE = {
                 "location": [0.0961037602067311, 0.21000000689523302, 0.01599999013826773]}]}
 
 
-def test_roller_stage_gives_internal_oblique_a_roller(skel, monkeypatch, tmp_path):
+def test_roller_stage_on_internal_oblique(skel, monkeypatch, tmp_path):
     """The stage on internal oblique's finished result (the default config's problem, one worker): its fit
-    without the bone rows passes 3 mm through the pelvis, a roller there carries it; the result is clear of
-    bone at every bone-check pose (exact: OpenSim's wrapping, the meshes), its roller 3 mm off the pelvis,
-    and its validation error falls by more than the stage's margin (0.19 / 0.29 -> 0.12 / 0.22 measured);
-    a result that already passes is left alone; in a warm re-run, one its warm start's run tried without a
-    gain is not tried again (and the outcome carried on), and a broken warm summary is a clear error; a
-    roller that leaves the route in bone and fits no better gets no second placement round."""
+    without the bone rows passes 3 mm through the pelvis, so a roller goes there; open-ended in the fit, the
+    roller must then be 80 mm long to keep the cable at every check pose, which puts it 5.5 mm into the
+    pelvis, and moved out the fit is lost: the result stays without a roller, saying why (stop 38; before,
+    a 30 mm roller whose cable slipped off its end at 29 % of random poses was kept for a gain that was
+    mostly that slip). A result that passes both fit limits is left alone; in a warm re-run, one its warm
+    start's run tried without a gain is not tried again (and the outcome carried on), and a broken warm
+    summary is a clear error; a roller that leaves the route in bone and fits no better gets no second
+    placement round."""
     from pamkin.bones import BoneSet
     from pamkin.design import design_from_dict
     from pamkin.optimize import run as R
-    from pamkin.optimize.bone_cuts import bone_check_poses
-    from pamkin.optimize.rollers import MIN_GAIN
-    from pamkin.optimize.validation import validation_error
 
     human = pamkin.gait2392()
     rom = load_rom("robot_thesis", "r")
@@ -203,21 +202,18 @@ def test_roller_stage_gives_internal_oblique_a_roller(skel, monkeypatch, tmp_pat
     progress = io.StringIO()
     out = R.roller_pass([given], cfg, progress)[0]
     assert "rollers: 1 actuators fail a fit limit" in progress.getvalue()
-    log = "\n".join(out.bone["log"])
-    assert "kept with rollers" in log, log
-    (rol,) = out.pam.rollers
-    assert rol.segment == "p1->p2" and rol.body == "pelvis"
-    q, n_right = bone_check_poses(human, rom, seed_design.pam(2), cfg.seed, crossed=data[0].crossed)
-    dep = depths(out.pam, human, R._STATE["bones"], q, seed_design, n_right)
-    assert dep.clear() and 0.002 < dep.roller_bone[0] < 0.005
-    assert out.bone["clear"] and out.bone["rollers"] == ["p1->p2"] and out.bone["max_segment_penetration_mm"] == 0
-    assert R.bone_line(out.bone).startswith("clear") and out.bone["roller_stage"] == "kept"
-    qv, Tv = R._validation_set()
-    before = sum(validation_error(final, human, qv, Tv, list(data[0].crossed), seed_design))
-    after = sum(validation_error(out.pam, human, qv, Tv, list(data[0].crossed), seed_design))
-    assert after < before - MIN_GAIN
+    log = out.bone["log"]
+    assert log[-3].endswith("deepest piece 0.0 mm, rollers -5.5 mm off bone, 80 mm long"), log
+    assert log[-1] == "    kept without rollers: no clear route with rollers" and out.pam is given.pam
+    assert out.bone["roller_stage"] == "without rollers: no clear route with rollers"
     # a result that passes both fit limits is not tried
-    assert R.roller_pass([out], cfg, progress)[0] is out
+    import pamkin.audit as audit_mod
+    strict = audit_mod.load_limits
+    loose = strict()
+    loose["thresholds"] = dict(loose["thresholds"], nrmse_good=1.0, worst_coordinate_error_good=1.0)
+    monkeypatch.setattr(audit_mod, "load_limits", lambda *a, **k: loose)
+    assert R.roller_pass([given], cfg, progress)[0] is given
+    monkeypatch.setattr(audit_mod, "load_limits", strict)
     # a warm re-run: what the warm start's run did with it decides (tried there without a gain: not again)
     assert R.warm_roller_outcomes(tmp_path) == {}                       # no summary: as a cold run
     (tmp_path / "summary.json").write_text(json.dumps({"bone_mesh": {"2": {"roller_stage": "kept"}}}))
@@ -246,10 +242,60 @@ def test_roller_stage_gives_internal_oblique_a_roller(skel, monkeypatch, tmp_pat
 
     monkeypatch.setattr(rollers_mod, "depths", deeper)
     worse = R.roller_pass([dataclasses.replace(given, objective=0.05)], cfg, io.StringIO())[0]
-    assert not worse.pam.rollers and worse.bone["log"][-2].endswith("round 1: objective 0.08061, deepest piece "
-                                                                    "5.0 mm, rollers 3.1 mm off bone"), worse.bone["log"]
+    assert not worse.pam.rollers and worse.bone["log"][-2].endswith("round 1: objective 0.06073, deepest piece "
+                                                                    "5.0 mm, rollers -5.5 mm off bone, 80 mm long"), \
+        worse.bone["log"]
     assert worse.bone["roller_stage"] == ("without rollers: with rollers the route is not clear and fits no better "
-                                          "(objective 0.05 -> 0.08061)")
+                                          "(objective 0.05 -> 0.06073)")
+
+
+#: Internal oblique as the stop-38 default run left it (run s39_b2), with the 30 mm roller that run kept.
+INTERNAL_OBLIQUE_ROLLED = {
+    **INTERNAL_OBLIQUE, "resting_length_m": 0.24646414314348644, "tendon_length_m": 1.2305198846033187e-06,
+    "points": [{"type": "PathPoint", "name": "p1", "body": "pelvis",
+                "location": [-0.08572310464362938, 0.04273938110192771, 0.05685518766042528]},
+               {"type": "PathPoint", "name": "p2", "body": "torso",
+                "location": [0.08949312835033706, 0.20307784434036322, 0.01600053089388801]}],
+    "rollers": [{"segment": "p1->p2", "body": "pelvis",
+                 "centre": [-0.07062969414115322, 0.07214076162387521, 0.06443033662732293],
+                 "axis": [-0.45461476876856516, 0.11513930178919912, -0.8832147831648879],
+                 "side": [0.8827652958842764, -0.07372193523569882, -0.46399408255650115],
+                 "radius_m": 0.005, "length_m": 0.03}]}
+
+
+def test_size_rollers_keeps_the_cable_on_the_roller():
+    """The stop-38 default run's internal oblique roller (30 mm): along lumbar extension (others 0) the cable
+    slips off its end at 5.1 deg (OpenSim's rule: no wrap once both tangent points lie beyond the ends), a step
+    of 0.68 mm in the route and of 28 -> 23 mm in the moment arm; on random poses the route is shorter than
+    over an open roller at many of them. size_rollers gives it the shortest length that keeps the cable
+    (50 mm, measured): the route is then the open roller's at every pose, without the step."""
+    from pamkin.design import design_from_dict
+    from pamkin.optimize.rollers import OPEN_LENGTH, size_rollers
+
+    human = pamkin.gait2392()
+    rom = load_rom("robot_thesis", "r")
+    des = load_design("v2_seed", bodies=human.bodies)
+    pam = design_from_dict({"pams": [INTERNAL_OBLIQUE_ROLLED]}, "io", human.bodies).pams[0]
+
+    def lengths(p, q):
+        d = Design("x", (p,), des.pressure_Pa, des.force_model, des.fitting_length_m, des.rom)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RangeWarning)
+            return PamRobot(d, human, sides=("r",)).evaluate(q).lengths[:, 0]
+
+    c = human.coordinates.index("lumbar_extension")
+    q = np.zeros((201, len(human.coordinates)))
+    q[:, c] = np.radians(np.linspace(0.0, 10.0, 201))
+    steps = np.abs(np.diff(lengths(pam, q)))
+    assert steps.max() == pytest.approx(6.8e-4, abs=0.5e-4) and 1e3 * steps.max() > 20 * np.median(steps) * 1e3
+    qr = random_poses(human, rom, 300, 11)
+    open_ = dataclasses.replace(pam, rollers=(dataclasses.replace(pam.rollers[0], length_m=OPEN_LENGTH),))
+    slipped = np.abs(lengths(pam, qr) - lengths(open_, qr)) > 1e-9
+    assert 0.1 < slipped.mean() < 0.5
+    sized = size_rollers(pam, human, np.concatenate([q, qr]), des)
+    assert sized.rollers[0].length_m == 0.05 and sized.rollers[0].centre == pam.rollers[0].centre
+    assert np.abs(lengths(sized, qr) - lengths(open_, qr)).max() <= 1e-9
+    assert np.abs(np.diff(lengths(sized, q))).max() < 3 * np.median(np.abs(np.diff(lengths(sized, q))))
 
 
 def test_detour_pass_measures_a_rollered_segment_round_its_roller(monkeypatch):
