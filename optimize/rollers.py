@@ -39,7 +39,7 @@ import numpy as np
 from pamkin.design import Design, Pam
 from pamkin.errors import RangeWarning
 from pamkin.paths import PathSet
-from pamkin.rollers import Roller, roller_axis_points, roller_world
+from pamkin.rollers import OPEN_LENGTH_M, Roller, open_ended, roller_axis_points, roller_world
 
 from .bone_cuts import right_only_query
 from .roller_model import RollerData
@@ -65,11 +65,11 @@ ROLLER_BRACKET = 0.018
 MIN_GAIN = 0.02
 #: Test points along each straight piece (every this many metres) for the exact bone check.
 STEP = 0.003
-#: Length [m] of a roller in the optimiser's problem: long enough that the cable never leaves it over an end
-#: (OpenSim drops a wrap whose tangent points pass beyond the cylinder's ends, a step in the route's length
-#: the fit could exploit: measured at stop 38, internal oblique's 30 mm roller lost its cable at 29 % of
-#: random poses and most of its gain with it).
-OPEN_LENGTH = 10.0
+#: Length [m] of a roller in the optimiser's problem (:data:`pamkin.rollers.OPEN_LENGTH_M`): the cable never
+#: leaves it over an end (OpenSim drops a wrap whose tangent points pass beyond the cylinder's ends, a step in
+#: the route's length the fit could exploit: measured at stop 38, internal oblique's 30 mm roller lost its
+#: cable at 29 % of random poses and most of its gain with it).
+OPEN_LENGTH = OPEN_LENGTH_M
 #: Roller lengths [m] tried after the solve, shortest first (:func:`size_rollers`).
 LENGTHS = (0.03, 0.04, 0.05, 0.06, 0.08, 0.1)
 
@@ -151,7 +151,7 @@ def size_rollers(pam: Pam, model, q: np.ndarray, design: Design) -> Pam | None:
             warnings.simplefilter("ignore", RangeWarning)
             return PamRobot(des, model, sides=("r",)).evaluate(q).lengths[:, 0]
 
-    rollers = [dataclasses.replace(r, length_m=OPEN_LENGTH) for r in pam.rollers]
+    rollers = list(open_ended(pam.rollers))
     target = lengths(dataclasses.replace(pam, rollers=tuple(rollers)))
     for i in range(len(rollers)):
         for ln in LENGTHS:

@@ -40,7 +40,7 @@ import os
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -54,7 +54,7 @@ from .errors import ConfigurationError, DataFileError, RangeWarning
 from .model import Model
 from .osim import ConditionalPathPoint, MovingPathPoint, PathPoint
 from .pam_body import pam_capsules, placement, route_positions, segment_names
-from .rollers import roller_axis_points
+from .rollers import open_ended, roller_axis_points
 from .paths import PathSet
 from .robot import PamRobot, robot_skeleton
 from .rom import RangeOfMotion, load_rom
@@ -378,6 +378,13 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
             row[f"{key}_dead_zone_fraction"] = float(np.mean(~st.in_range[:, k]))
         if "gait" in pam_state:   # the left PAM on the left leg's gait
             row["gait_dead_zone_fraction_left"] = float(np.mean(~pam_state["gait"].in_range[:, k + n]))
+        if pam.rollers and "random" in pam_state:     # a cable off a roller's end: shorter than over open rollers
+            opened = Design(des.name, (replace(pam, rollers=open_ended(pam.rollers)),), des.pressure_Pa,
+                            des.force_model, des.fitting_length_m, des.rom)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RangeWarning)
+                L_open = PamRobot(opened, skel, sides=("r",)).evaluate(sets["random"]).lengths[:, 0]
+            row["roller_cable_off_fraction"] = float(np.mean(np.abs(pam_state["random"].lengths[:, k] - L_open) > 1e-9))
         rows.append(row)
 
     # ---- (a) sweeps and grids

@@ -83,6 +83,11 @@ def scorecard_text(res) -> str:
               f"total PAM length {_fmt(sm['total_pam_length_m'])} m, air {_fmt(sm['air_volume_l'])} l, "
               f"mass {_fmt(sm['mass_kg'])} kg (assumed Festo weights)",
               *force_level_lines(res.pams, thr["nrmse_good"], thr["worst_coordinate_error_good"]),
+              *(["cable off a roller's end (the route shorter than over open-ended rollers: a guide that loses its "
+                 "cable) at a share of the random poses: " + ", ".join(
+                     f"{r['id']} {r['name']} {100 * r['roller_cable_off_fraction']:.1f} %" for r in res.pams
+                     if r.get("roller_cable_off_fraction"))]
+                if any(r.get("roller_cable_off_fraction") for r in res.pams) else []),
               *(["pam_at not possible (the route on that side of the mount segment changes length, or the PAM is "
                  "not on one segment), ignored: " + ", ".join(
                      f"{r['id']} {r['name']} ({r['pam_at_not_possible']})" for r in res.pams if r.get("pam_at_not_possible"))]

@@ -24,18 +24,23 @@ Design-file form (per PAM, body-frame coordinates in metres)::
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .wrapping import NO_WRAP, PathWrap, WrapObject, wrap_cylinder
 
-__all__ = ["Roller", "ROLLER_LENGTH_M", "roller_axis_points", "roller_from_dict", "roller_frame", "roller_pieces",
+__all__ = ["Roller", "OPEN_LENGTH_M", "ROLLER_LENGTH_M", "open_ended", "roller_axis_points", "roller_from_dict", "roller_frame", "roller_pieces",
            "roller_world",
            "path_wraps", "wrap_object"]
 
 #: Default roller length along its axis [m].
 ROLLER_LENGTH_M = 0.04
+#: Length [m] of an open-ended roller: a cable on it never reaches an end. OpenSim's WrapCylinder drops a wrap
+#: whose tangent points both lie beyond the cylinder's ends (the cable slips off a short roller, a step in the
+#: route's length); a route shorter over its rollers than over open-ended ones is a cable off a roller
+#: (:func:`open_ended`).
+OPEN_LENGTH_M = 10.0
 
 
 @dataclass(frozen=True)
@@ -115,6 +120,12 @@ def roller_from_dict(d: dict, segments: Sequence[str], bodies: Sequence[str] | N
     return Roller(str(d["segment"]), str(d["body"]), tuple(float(x) for x in vec["centre"]),   # type: ignore[arg-type]
                   tuple(float(x) for x in vec["axis"]), tuple(float(x) for x in vec["side"]),  # type: ignore[arg-type]
                   radius, length)
+
+
+def open_ended(rollers: Sequence[Roller]) -> tuple[Roller, ...]:
+    """``rollers`` made :data:`OPEN_LENGTH_M` long (same centre, axis and radius): the cable never leaves them
+    over an end."""
+    return tuple(replace(r, length_m=OPEN_LENGTH_M) for r in rollers)
 
 
 def roller_frame(r: Roller) -> np.ndarray:

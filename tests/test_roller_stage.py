@@ -332,3 +332,24 @@ def test_detour_pass_measures_a_rollered_segment_round_its_roller(monkeypatch):
     out = R.detour_pass([given], cfg, io.StringIO())[0]
     assert out.bone["detours"] == {"a->b": "stand-in"}
     assert out.bone["max_segment_penetration_mm"] == pytest.approx(1e3 * guided, abs=0.5)
+
+
+def test_audit_names_a_roller_that_loses_its_cable():
+    """The audit compares each rollered route with the same route over open-ended rollers at its random poses:
+    the stop-38 internal oblique roller (30 mm) loses the cable at a share of them, named on the scorecard;
+    sized to 50 mm it never does (no line)."""
+    from pamkin.audit import AuditOptions, audit_design
+    from pamkin.audit_report import scorecard_text as scorecard
+    from pamkin.design import design_from_dict
+
+    human = pamkin.gait2392()
+    pam = design_from_dict({"pams": [INTERNAL_OBLIQUE_ROLLED]}, "io", human.bodies).pams[0]
+    opts = AuditOptions(n_random=200, gait_ik=None, gait_plan=False, n_geometry=10, n_sweep=5, n_grid=3,
+                        segment_step_m=0.01)
+    res = audit_design(Design("io", (pam,), rom="robot_thesis"), options=opts)
+    share = res.pams[0]["roller_cable_off_fraction"]
+    assert 0.1 < share < 0.5
+    assert "cable off a roller's end" in scorecard(res) and f"2 Internal Oblique {100 * share:.1f} %" in scorecard(res)
+    long = dataclasses.replace(pam, rollers=(dataclasses.replace(pam.rollers[0], length_m=0.05),))
+    res = audit_design(Design("io", (long,), rom="robot_thesis"), options=opts)
+    assert res.pams[0]["roller_cable_off_fraction"] == 0.0 and "cable off a roller" not in scorecard(res)
