@@ -437,8 +437,6 @@ def load_config(path: str | Path | None) -> RunConfig:
             kwargs[key] = value
         else:
             raise DataFileError(str(path), f"unknown key {key!r}; known: {sorted(top | set(_SECTIONS))}")
-    if kwargs.get("bone_mesh") is False:
-        kwargs.setdefault("rollers", False)     # the roller stage needs the meshes: off with them unless asked for
     try:
         cfg = RunConfig(**kwargs, source=str(path))
     except TypeError as e:

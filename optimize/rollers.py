@@ -19,7 +19,10 @@ this stage
    pose): every straight piece within the limit, every attachment point and roller outside its bone and
    within the bracket distance; a piece still too deep moves its roller out by half the depth (up to
    :data:`PLACE_ROUNDS` rounds), unless the fit with the rollers is already no better than the result's.
-   In the problem a roller is open-ended (:data:`OPEN_LENGTH`); after the solve it gets the shortest length
+   In the problem a roller is open-ended (:data:`pamkin.rollers.OPEN_LENGTH_M`: OpenSim drops a wrap whose
+   tangent points pass beyond the cylinder's ends, a step in the route's length the fit could exploit; measured
+   at stop 38, internal oblique's 30 mm roller lost its cable at 29 % of random poses and most of its gain with
+   it); after the solve it gets the shortest length
    on which the cable stays at every bone-check and validation pose (:func:`size_rollers`): a cable that
    would slip off a roller's end is a guide that fails, and its step in length a fit that is not real;
 4. keeps the rollers where the validation error (primary NRMSE + worst coordinate error) falls by more than
@@ -39,7 +42,7 @@ import numpy as np
 from pamkin.design import Design, Pam
 from pamkin.errors import RangeWarning
 from pamkin.paths import PathSet
-from pamkin.rollers import OPEN_LENGTH_M, Roller, open_ended, roller_axis_points, roller_world
+from pamkin.rollers import Roller, open_ended, roller_axis_points, roller_world
 
 from .bone_cuts import right_only_query
 from .roller_model import RollerData
@@ -65,11 +68,6 @@ ROLLER_BRACKET = 0.018
 MIN_GAIN = 0.02
 #: Test points along each straight piece (every this many metres) for the exact bone check.
 STEP = 0.003
-#: Length [m] of a roller in the optimiser's problem (:data:`pamkin.rollers.OPEN_LENGTH_M`): the cable never
-#: leaves it over an end (OpenSim drops a wrap whose tangent points pass beyond the cylinder's ends, a step in
-#: the route's length the fit could exploit: measured at stop 38, internal oblique's 30 mm roller lost its
-#: cable at 29 % of random poses and most of its gain with it).
-OPEN_LENGTH = OPEN_LENGTH_M
 #: Roller lengths [m] tried after the solve, shortest first (:func:`size_rollers`).
 LENGTHS = (0.03, 0.04, 0.05, 0.06, 0.08, 0.1)
 
@@ -141,7 +139,7 @@ def depths(pam: Pam, model, bones, q: np.ndarray, design: Design, n_right_only: 
 
 def size_rollers(pam: Pam, model, q: np.ndarray, design: Design) -> Pam | None:
     """``pam`` with each roller the shortest of :data:`LENGTHS` (centred where it is) on which the cable never
-    leaves it over an end at poses ``q``: the route as long as over an open roller (:data:`OPEN_LENGTH`) at
+    leaves it over an end at poses ``q``: the route as long as over an open-ended roller (:func:`pamkin.rollers.open_ended`) at
     every pose (1e-9 m). None where even the longest loses the cable."""
     from pamkin.robot import PamRobot  # noqa: PLC0415
 

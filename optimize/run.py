@@ -680,9 +680,10 @@ def _roller_actuator(k: int) -> ActuatorResult:
     with rollers where it lowers the validation error, else the result as it was (its log says why)."""
     from .bone_cuts import BoneCuts, bone_check_poses, bone_stage  # noqa: PLC0415
     from .problem import FEASIBILITY_TOL, ActuatorProblem  # noqa: PLC0415
-    from .rollers import (DEPTH_LIMIT, GAP, LENGTHS, MAX_DEPTH, MIN_GAIN, OPEN_LENGTH, PLACE_ROUNDS,  # noqa: PLC0415
-                          depths, place, roller_data, size_rollers)
+    from .rollers import (DEPTH_LIMIT, GAP, LENGTHS, MAX_DEPTH, MIN_GAIN, PLACE_ROUNDS, depths, place,  # noqa: PLC0415
+                          roller_data, size_rollers)
     from .validation import validation_error  # noqa: PLC0415
+    from pamkin.rollers import open_ended  # noqa: PLC0415
 
     t0 = time.perf_counter()
     cfg: RunConfig = _STATE["cfg"]
@@ -740,8 +741,8 @@ def _roller_actuator(k: int) -> ActuatorResult:
     L_prev = prob.lengths(z)
     found = None
     for rnd in range(PLACE_ROUNDS):
-        rd = [roller_data(data, human, dataclasses.replace(rol, length_m=OPEN_LENGTH), j)     # open-ended
-              for j, rol in sorted(rollers.items())]
+        keys = sorted(rollers)
+        rd = [roller_data(data, human, rol, j) for j, rol in zip(keys, open_ended([rollers[j] for j in keys]))]
         prob1 = ActuatorProblem(data, cfg, d, seed, regions, relax, bracket, mount, rollers=rd)
         z0 = z.copy()
         L_new = prob1.lengths(z0)

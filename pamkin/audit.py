@@ -276,12 +276,15 @@ def torque_metrics(th: np.ndarray, tr: np.ndarray, prim: int, coords: list[int],
     the same force scales every coordinate's torque). Where the human has no torque about
     ``prim`` on these samples the ratios are undefined (nan; the audit's summary counts them as failing)."""
     peak = float(np.max(np.abs(th[:, prim]))) if len(th) else 0.0
-    err = {names[c]: _rms(tr[:, c] - th[:, c]) / peak if peak > 0 else float("nan") for c in coords}
-    worst = max(err, key=lambda c: (err[c] if np.isfinite(err[c]) else -1)) if err else ""
+
+    def errors(s: float) -> tuple[dict, str]:     # per coordinate at force scale s, and the worst of them
+        e = {names[c]: _rms(s * tr[:, c] - th[:, c]) / peak if peak > 0 and np.isfinite(s) else float("nan")
+             for c in coords}
+        return e, (max(e, key=lambda c: (e[c] if np.isfinite(e[c]) else -1)) if e else "")
+
+    err, worst = errors(1.0)
     scale, scaled = best_force_scale(th[:, prim], tr[:, prim])
-    at = {names[c]: _rms(scale * tr[:, c] - th[:, c]) / peak if peak > 0 and np.isfinite(scale) else float("nan")
-          for c in coords}
-    worst_at = max(at, key=lambda c: (at[c] if np.isfinite(at[c]) else -1)) if at else ""
+    at, worst_at = errors(scale)
     return {"nrmse": err.get(names[prim], float("nan")), "human_peak_Nm": peak,
             "best_force_scale": scale, "nrmse_at_best_scale": scaled / peak if peak > 0 else float("nan"),
             "worst_at_best_scale": at.get(worst_at, float("nan")), "worst_coordinate_at_best_scale": worst_at,

@@ -270,7 +270,8 @@ def test_size_rollers_keeps_the_cable_on_the_roller():
     over an open roller at many of them. size_rollers gives it the shortest length that keeps the cable
     (50 mm, measured): the route is then the open roller's at every pose, without the step."""
     from pamkin.design import design_from_dict
-    from pamkin.optimize.rollers import OPEN_LENGTH, size_rollers
+    from pamkin.optimize.rollers import size_rollers
+    from pamkin.rollers import OPEN_LENGTH_M
 
     human = pamkin.gait2392()
     rom = load_rom("robot_thesis", "r")
@@ -289,7 +290,7 @@ def test_size_rollers_keeps_the_cable_on_the_roller():
     steps = np.abs(np.diff(lengths(pam, q)))
     assert steps.max() == pytest.approx(6.8e-4, abs=0.5e-4) and 1e3 * steps.max() > 20 * np.median(steps) * 1e3
     qr = random_poses(human, rom, 300, 11)
-    open_ = dataclasses.replace(pam, rollers=(dataclasses.replace(pam.rollers[0], length_m=OPEN_LENGTH),))
+    open_ = dataclasses.replace(pam, rollers=(dataclasses.replace(pam.rollers[0], length_m=OPEN_LENGTH_M),))
     slipped = np.abs(lengths(pam, qr) - lengths(open_, qr)) > 1e-9
     assert 0.1 < slipped.mean() < 0.5
     sized = size_rollers(pam, human, np.concatenate([q, qr]), des)
