@@ -62,6 +62,9 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      (primary NRMSE > 0.15 and worst error > 0.25 on the optimiser's own
                                  #      validation poses, optimize.validation) goes on one segment at any fit cost
                                  #      that keeps every limit: buildability first where no fit count is at stake
+    mount_passing = true         # (v2, with mount) a PAM that on one segment (or on a pulley block) still passes
+                                 #      both audit fit limits on the validation poses, less 0.02, goes on it at any
+                                 #      fit cost that keeps every limit: no fit count is lost
     mount_blocks = true          # (v2, with mount) a PAM out of reach of one segment at 1:1, or infeasible there, is tried on a 2:1
                                  #      pulley block on the same route, then 3:1 (same count, same or larger diameter;
                                  #      the same mount_cost rule; optimize.mount.mount_block)
@@ -144,7 +147,7 @@ _SECTIONS = {
                "bone_clearance": "bone_clearance", "kmax_scale": "kmax_scale",
                "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths",
                "move_moving_points": "move_moving_points", "rated_force": "rated_force",
-               "one_segment": "one_segment", "one_segment_actuators": "one_segment_actuators", "mount": "mount", "mount_cost": "mount_cost", "mount_failing": "mount_failing", "mount_blocks": "mount_blocks", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
+               "one_segment": "one_segment", "one_segment_actuators": "one_segment_actuators", "mount": "mount", "mount_cost": "mount_cost", "mount_failing": "mount_failing", "mount_passing": "mount_passing", "mount_blocks": "mount_blocks", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
                "bone_seed_start": "bone_seed_start", "bracket_fit": "bracket_fit",
                "max_units": "max_units", "walking_min": "walking_min",
                "pam_clearance": "pam_clearance", "rollers": "rollers", "detours": "detours", "resize_above": "resize_above", "block_refit_above": "block_refit_above",
@@ -210,6 +213,7 @@ class RunConfig:
     mount: bool = True
     mount_cost: float = 0.1
     mount_failing: bool = True
+    mount_passing: bool = True
     mount_blocks: bool = True
     sensitivity_pct: float = 9.0
     bone_mesh: bool = True

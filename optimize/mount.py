@@ -144,7 +144,8 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam, failing=Non
         solution_pam: ``(pam, solution) -> Pam`` (the run's saved form of a solution).
         failing: Optional ``(spanning Pam, mounted Pam) -> str | None``: a reason to mount the PAM although
             the fit cost exceeds ``mount_cost`` (``cfg.mount_failing``: its fit already fails the audit's fit
-            limits, so no fit count is at stake), or None.
+            limits; ``cfg.mount_passing``: on one segment it still passes them; either way no fit count is at
+            stake), or None.
 
     Returns:
         ``(solution, info)``: the mounted solution, or ``best`` unchanged, and a dict with ``mounted``,
@@ -264,16 +265,17 @@ BLOCKS = (2, 3)
 BLOCK_REASONS = ("out of reach", "infeasible")
 
 
-def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam, blocked=frozenset()
-                ) -> tuple[object, object, dict]:
+def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam, blocked=frozenset(),
+                failing=None) -> tuple[object, object, dict]:
     """A PAM out of reach of one straight segment of its fixed route, or infeasible there (``info`` from
     :func:`mount_stage`, :data:`BLOCK_REASONS`), on a pulley block instead (``[limits] mount_blocks``): a
     2:1 block, and where no diameter mounts on it a 3:1 block (:data:`BLOCKS`; not for a diameter that fit
     the 2:1 block at a fit cost) — the same route and
     parallel count, the same or a larger diameter, resting length and tendon solved again with the PAM on
     one segment — 1/k of the stroke at 1/k of the force on the route (:mod:`pamkin.design`, transmission) —
-    by :func:`mount_stage` under its rule against the direct PAM's objective (root + <= ``mount_cost``;
-    strain, force and segment re-checked on the held-out poses). Of the diameters that pass at the first
+    by :func:`mount_stage` under its rule against the direct PAM's objective (root + <= ``mount_cost``, or a
+    reason from ``failing`` to accept a larger cost, ``mount_passing``; strain, force and segment re-checked on
+    the held-out poses). Of the diameters that pass at the first
     ratio that mounts, the least objective + mass penalty (the block's assumed mass included) is kept. The
     route, so its bone clearance, and the PAM units do not change.
 
@@ -299,7 +301,7 @@ def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam,
                                  prob.relax, prob.bracket or None)
             start = dataclasses.replace(p2.evaluate(best.z, best.n_parallel), objective=best.objective,
                                         rest_length=best.rest_length / k)
-            sol, out = mount_stage(p2, start, pk, cfg, model, rom, solution_pam, blocked=blocked)
+            sol, out = mount_stage(p2, start, pk, cfg, model, rom, solution_pam, failing, blocked)
             these.append(f"{d} mm: {out.get('reason') or 'mounted'}"
                          + (f" (root +{out['cost']:.3f})" if "cost" in out else ""))
             if out.get("reason") == "fit cost":

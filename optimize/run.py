@@ -490,7 +490,10 @@ def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None, blocks: bool = True)
     from .mount import BLOCK_REASONS, mount_block, mount_rounds, mount_stage  # noqa: PLC0415
 
     # made only where a fit cost is weighed (the validation errors of this actuator's crossed coordinates)
-    failing = (lambda a, b: _failing_fit(list(prob.data.crossed or []))(a, b)) if cfg.mount_failing else None
+    def rule(already_failing: bool, still_passing: bool):
+        return lambda a, b: _failing_fit(list(prob.data.crossed or []), already_failing, still_passing)(a, b)
+
+    failing = rule(cfg.mount_failing, cfg.mount_passing) if cfg.mount_failing or cfg.mount_passing else None
     blocked = frozenset(cuts.in_own_bone(np.array(best.points))) if cuts is not None else frozenset()
     best, info = mount_stage(prob, best, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam, failing, blocked)
     if not info.get("mounted") and cuts is not None:
@@ -502,8 +505,12 @@ def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None, blocks: bool = True)
             info = dict(info, line=info["line"] + "; no pulley block tried (warm start: its transmission kept)")
     elif not info.get("mounted"):
         before = (best, prob, info)
+        # on a block only mount_passing (the mounted PAM's own errors): mount_failing on blocks too, measured at
+        # stop 39, mounted tensor fasciae latae and internal oblique at a large fit cost and the run's later
+        # passes (re-sizing, mass budget) moved other PAMs: 9 audit limits failed instead of 6
+        passing = rule(False, True) if cfg.mount_passing else None
         best, prob, info = mount_block(prob, best, info, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam,
-                                       blocked)
+                                       blocked, passing)
         if info.get("transmission", 1) > 1:
             direct = before
     return best, prob, info, direct
@@ -1036,7 +1043,7 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
     pams = [seed_design.pam(i) for i in ids]
     data = [actuator_data(p, human, rom, cfg, seed_design.fitting_length_m) for p in pams]
     _STATE.update(cfg=cfg, data=data, human=human, rom=rom, validation=None, seed_design=seed_design)
-    if cfg.mount and cfg.mount_failing:
+    if cfg.mount and (cfg.mount_failing or cfg.mount_passing):
         # the human torques of the validation poses here, before the workers fork: a forked worker that
         # computes them itself hangs in the threads the parent process already started
         _validation_set()
@@ -1238,26 +1245,45 @@ def _validation():
     return error
 
 
-def _failing_fit(crossed: list[str]):
-    """``(spanning, mounted) -> reason | None`` for :func:`optimize.mount.mount_stage` (``mount_failing``): a
-    reason when the spanning PAM's fit fails both of the audit's fit limits (primary NRMSE and worst error about
-    a crossed coordinate, :mod:`optimize.validation`, on the optimiser's own validation poses; thresholds from
-    the audit's limits file), so that mounting it at a fit cost changes neither count; else None."""
+#: ``mount_passing``: a mount at a fit cost is accepted where the mounted PAM's validation NRMSE and worst error
+#: stay this far within the audit's limits (the validation poses are 400, the audit's 2000; measured on the
+#: default design (stop 37's, unchanged at stop 39) the two differ by at most 0.008 in NRMSE and 0.015 in worst
+#: error for every PAM whose errors are below 0.3).
+PASS_MARGIN = 0.02
+
+
+def _failing_fit(crossed: list[str], already_failing: bool = True, still_passing: bool = False):
+    """``(spanning, mounted) -> reason | None`` for :func:`optimize.mount.mount_stage`: a reason to mount a PAM
+    although its fit cost exceeds ``mount_cost``, where no audit fit count is at stake — with
+    ``already_failing`` (``mount_failing``) when the spanning PAM's fit fails both of the audit's fit limits
+    (primary NRMSE and worst error about a crossed coordinate, :mod:`optimize.validation`, on the optimiser's own
+    validation poses; thresholds from the audit's limits file), so that mounting it changes neither count; with
+    ``still_passing`` (``mount_passing``) when the mounted PAM still passes both within :data:`PASS_MARGIN`, so
+    that mounting it loses neither; else None."""
     from pamkin.audit import load_limits  # noqa: PLC0415
 
     from .validation import validation_error  # noqa: PLC0415
 
     thr = load_limits()["thresholds"]
+    lim_n, lim_w = thr["nrmse_good"], thr["worst_coordinate_error_good"]
     q, T = _validation_set()
 
+    def error(pam: Pam) -> tuple[float, float]:
+        return validation_error(pam, _STATE["human"], q, T, crossed, _STATE["seed_design"])
+
     def reason(spanning: Pam, mounted: Pam) -> str | None:
-        nr0, w0 = validation_error(spanning, _STATE["human"], q, T, crossed, _STATE["seed_design"])
-        if not (nr0 > thr["nrmse_good"] and w0 > thr["worst_coordinate_error_good"]):
-            return None
-        nr1, w1 = validation_error(mounted, _STATE["human"], q, T, crossed, _STATE["seed_design"])
-        return (f"its fit fails both audit fit limits already (validation NRMSE {nr0:.3f} > "
-                f"{thr['nrmse_good']:g}, worst {w0:.3f} > {thr['worst_coordinate_error_good']:g}; on one segment "
-                f"{nr1:.3f}, {w1:.3f})")
+        if already_failing:
+            nr0, w0 = error(spanning)
+            if nr0 > lim_n and w0 > lim_w:
+                nr1, w1 = error(mounted)
+                return (f"its fit fails both audit fit limits already (validation NRMSE {nr0:.3f} > {lim_n:g}, "
+                        f"worst {w0:.3f} > {lim_w:g}; on one segment {nr1:.3f}, {w1:.3f})")
+        if still_passing:
+            nr1, w1 = error(mounted)
+            if nr1 <= lim_n - PASS_MARGIN and w1 <= lim_w - PASS_MARGIN:
+                return (f"on one segment it still passes both audit fit limits (validation NRMSE {nr1:.3f} <= "
+                        f"{lim_n:g} - {PASS_MARGIN:g}, worst {w1:.3f} <= {lim_w:g} - {PASS_MARGIN:g})")
+        return None
 
     return reason
 

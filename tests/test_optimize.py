@@ -1381,3 +1381,36 @@ def test_failing_fit_needs_both_audit_fit_limits_failed(monkeypatch, errors, acc
         assert calls == ["spanning", "mounted"]
     else:
         assert calls == ["spanning"]
+
+
+
+@pytest.mark.parametrize("mounted,accepted", [((0.12, 0.20), True), ((0.13, 0.23), True), ((0.14, 0.20), False),
+                                              ((0.12, 0.24), False), ((0.20, 0.30), False)])
+def test_passing_fit_accepts_a_mount_that_keeps_both_audit_fit_limits(monkeypatch, mounted, accepted):
+    """``mount_passing``: a fit cost is accepted where the mounted PAM's validation NRMSE and worst error both stay
+    PASS_MARGIN (0.02) within the audit's limits (0.15 and 0.25), whatever the spanning PAM's errors: mounting it
+    loses neither fit count. Without ``mount_passing`` the same PAM stays spanning; with both rules the first
+    (fails both already) is asked first."""
+    import pamkin.optimize.validation as validation
+
+    assert run_mod.PASS_MARGIN == 0.02
+    calls = []
+
+    def fake(pam, *a, **kw):
+        calls.append(pam)
+        return (0.05, 0.06) if pam == "spanning" else mounted
+
+    monkeypatch.setattr(validation, "validation_error", fake)
+    monkeypatch.setitem(run_mod._STATE, "validation", (np.zeros((1, 1)), np.zeros((1, 1, 1))))
+    monkeypatch.setitem(run_mod._STATE, "human", None)
+    monkeypatch.setitem(run_mod._STATE, "seed_design", None)
+    reason = run_mod._failing_fit(["knee_angle_r"], already_failing=False, still_passing=True)("spanning", "mounted")
+    assert (reason is not None) == accepted
+    assert calls == ["mounted"]
+    if accepted:
+        assert reason == (f"on one segment it still passes both audit fit limits (validation NRMSE {mounted[0]:.3f} "
+                          f"<= 0.15 - 0.02, worst {mounted[1]:.3f} <= 0.25 - 0.02)")
+    assert run_mod._failing_fit(["knee_angle_r"])("spanning", "mounted") is None      # mount_failing alone
+    calls.clear()
+    both = run_mod._failing_fit(["knee_angle_r"], already_failing=True, still_passing=True)("spanning", "mounted")
+    assert both == reason and calls == ["spanning", "mounted"]

@@ -282,6 +282,18 @@ def test_one_segment_stage_tries_a_block_on_the_fixed_route(toy):
     # every diameter fit the 2:1 block at a fit cost: a 3:1 block (a third of the force) is not tried
     assert out2["block_tried"] == ["with a 2:1 pulley block on the same route: 10 mm: fit cost (root +0.000), "
                                    "20 mm: fit cost (root +0.000)"]
+    # mount_passing: a reason to accept the cost (the run's: the mounted PAM still passes the audit's fit
+    # limits) is asked with the spanning start and the mounted PAM on the block, and mounts it at that cost
+    asked = []
+
+    def passing(spanning, mounted):
+        asked.append((spanning.transmission, mounted.transmission))
+        return "on one segment it still passes both audit fit limits (test)"
+
+    got3, p4, out4 = mount_block(prob, sol, info, seed, strict, model, rom, solution_pam, frozenset(), passing)
+    assert out4["mounted"] and out4["transmission"] == 2 and p4.k == 2 and asked and set(asked) == {(2, 2)}
+    assert out4["failing_fit"].endswith("(test)")
+    np.testing.assert_allclose(np.array(got3.points), np.array(sol.points), atol=0)
     off = dataclasses.replace(cfg, mount_blocks=False)
     assert mount_block(prob, sol, info, seed, off, model, rom, solution_pam)[2] is info
     # tried where the stage found the PAM infeasible at 1:1 too (a block halves the stroke the limits see),
