@@ -498,7 +498,7 @@ def _mount(prob, best, pam: Pam, cfg: RunConfig, cuts=None, blocks: bool = True)
     best, info = mount_stage(prob, best, pam, cfg, _STATE["human"], _STATE["rom"], solution_pam, failing, blocked)
     if not info.get("mounted") and cuts is not None:
         best, prob, info = mount_rounds(prob, best, info, pam, cfg, cuts, _STATE["human"], _STATE["rom"],
-                                        solution_pam)
+                                        solution_pam, failing)
     direct = None
     if not info.get("mounted") and not blocks:
         if cfg.mount_blocks and info.get("reason") in BLOCK_REASONS and prob.k == 1:

@@ -413,6 +413,25 @@ def test_mount_rounds_put_a_pam_on_its_segment_with_the_points_free():
     same, p_x, out_x = mount_rounds(prob, best, info_x, seed, cfg_x, cuts, model, rom, solution_pam)
     assert same is best and p_x is prob and not out_x["mounted"] and not out_x["rounds"]["kept"]
     assert "not kept, fit cost" in out_x["line"]
+    # mount_failing / mount_passing: the same rounds' result is kept at that cost where the run's rule gives a
+    # reason (asked with the spanning PAM and the mounted one), and the line names it
+    asked = []
+
+    def failing(spanning, mounted_pam):
+        asked.append((spanning, mounted_pam))
+        return "its fit fails both audit fit limits already (test)"
+
+    got, p_f, out_f = mount_rounds(prob, best, info_x, seed, cfg_x, cuts, model, rom, solution_pam, failing)
+    assert out_f["mounted"] and out_f["rounds"]["kept"] and out_f["failing_fit"].endswith("(test)")
+    assert f"> mount_cost {cfg_x.mount_cost:g}, accepted: its fit fails both" in out_f["line"]
+    assert asked and asked[0][0] == solution_pam(seed, prob.finalize(best))
+    assert mounted_segment(p_f, got.z) == p_f.mount
+    # infeasible on the fixed route: tried only where the PAM overran the segment alone, by <= 10 mm
+    for missed, tried in (({"PAM on one segment": 0.004}, True), ({"PAM on one segment": 0.02}, False),
+                          ({"PAM on one segment": 0.004, "contraction <= kmax": 0.001}, False), ({}, False)):
+        inf = dict(info_x, reason="infeasible", missed=missed)
+        _, _, out_i = mount_rounds(prob, best, inf, seed, cfg_x, cuts, model, rom, solution_pam)
+        assert ("rounds" in out_i) == tried, missed
     # far below the fixed route's cost: not tried
     cfg_y = dataclasses.replace(cfg, mount_cost=0.4 * c1)
     _, info_y = mount_stage(prob, best, seed, cfg_y, model, rom, solution_pam)
