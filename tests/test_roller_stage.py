@@ -354,3 +354,61 @@ def test_audit_names_a_roller_that_loses_its_cable():
     long = dataclasses.replace(pam, rollers=(dataclasses.replace(pam.rollers[0], length_m=0.05),))
     res = audit_design(Design("io", (long,), rom="robot_thesis"), options=opts)
     assert res.pams[0]["roller_cable_off_fraction"] == 0.0 and "cable off a roller" not in scorecard(res)
+
+
+def test_roller_stage_keeps_a_roller_that_clears_and_fits_better(skel, monkeypatch):
+    """The stage's "kept" path, on internal oblique's result: with the exact bone check made to report the
+    rollered route clear (pieces, points and roller within their limits) and the roller left at its placed
+    30 mm, the route re-solved over it fits the validation poses better than the result (NRMSE + worst falls by
+    more than MIN_GAIN), so the result is the rollered one: its PAM carries the roller on the segment the fit
+    put into bone, its route is the re-solved one, its bone summary names the roller, and the log ends with the
+    gain. (No actuator of the default run keeps a roller since stop 38; this checks the bookkeeping.)"""
+    from pamkin.bones import BoneSet
+    from pamkin.design import design_from_dict
+    from pamkin.optimize import run as R
+    from pamkin.optimize.validation import validation_error
+    import pamkin.optimize.rollers as rollers_mod
+
+    human = pamkin.gait2392()
+    rom = load_rom("robot_thesis", "r")
+    seed_design = load_design("v2_seed", bodies=human.bodies)
+    final = design_from_dict({"pams": [INTERNAL_OBLIQUE]}, "io", human.bodies).pams[0]
+    cfg = RunConfig(rollers=True, workers=1)
+    data = [actuator_data(seed_design.pam(2), human, rom, cfg, seed_design.fitting_length_m)]
+    monkeypatch.setattr(R, "_STATE", {})
+    R._STATE.update(cfg=cfg, data=data, human=human, rom=rom, validation=None, seed_design=seed_design,
+                    bones=BoneSet(human))
+    seed, regions = R._route_box(seed_design.pam(2), cfg)
+    prob = ActuatorProblem(data[0], cfg, 20, seed, regions)
+    z = prob.initial_guess([np.array(p.location) for p in final.points], final.resting_length_m,
+                           final.tendon_length_m)
+    given = R.ActuatorResult(2, final.name, final, "given", True, z=z, relaxed=["one_segment"], n_parallel=2,
+                             bone={"log": []})
+    real = rollers_mod.depths
+
+    def clear(pam, *a, **k):           # the rollered route reported clear of bone, its roller 5 mm off it
+        d = real(pam, *a, **k)
+        if not pam.rollers:
+            return d
+        return dataclasses.replace(d, segment_depth=np.zeros_like(d.segment_depth),
+                                   point_bone=np.clip(d.point_bone, 0.003, 0.018),
+                                   roller_bone=np.full(len(pam.rollers), 0.005))
+
+    monkeypatch.setattr(rollers_mod, "depths", clear)
+    monkeypatch.setattr(rollers_mod, "size_rollers", lambda pam, *a, **k: pam)
+    out = R.roller_pass([given], cfg, io.StringIO())[0]
+    log = out.bone["log"]
+    assert log[-1] == "    kept with rollers", log
+    assert out.bone["roller_stage"] == "kept" and out.bone["rollers"] == ["p1->p2"]
+    (rol,) = out.pam.rollers
+    assert rol.segment == "p1->p2" and rol.body == "pelvis" and rol.length_m == rollers_mod.LENGTH
+    assert out.pam.resting_length_m != given.pam.resting_length_m or \
+        any(a.location != b.location for a, b in zip(out.pam.points, given.pam.points))
+    assert out.attempts[-1]["start"] == "roller stage" and out.attempts[-1]["feasible"]
+    # the gain the log reports is the validation error's, recomputed independently
+    q, T = R._validation_set()
+    before = validation_error(given.pam, human, q, T, list(data[0].crossed), seed_design)
+    after = validation_error(out.pam, human, q, T, list(data[0].crossed), seed_design)
+    assert sum(after) < sum(before) - rollers_mod.MIN_GAIN
+    assert log[-2] == (f"    validation NRMSE / worst {before[0]:.3f} / {before[1]:.3f} -> {after[0]:.3f} / "
+                       f"{after[1]:.3f} with rollers")
