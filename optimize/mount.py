@@ -130,6 +130,16 @@ class _MountSolver:
         return sol
 
 
+def cost_accepted(cost: float, cfg, failing, spanning, mounted) -> tuple[bool, str | None]:
+    """Whether a mount at fit ``cost`` (growth of the objective's root) is kept, and the reason where it is over
+    ``cfg.mount_cost``: ``failing(spanning(), mounted())`` (the run's ``mount_failing`` / ``mount_passing`` rules;
+    ``spanning`` and ``mounted`` make the two PAMs only when asked), None where there is no such rule."""
+    if cost <= cfg.mount_cost:
+        return True, None
+    reason = failing(spanning(), mounted()) if failing is not None else None
+    return reason is not None, reason
+
+
 def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam, failing=None, blocked=frozenset()
                 ) -> tuple[object, dict]:
     """Put the PAM of a solved actuator on one straight segment of its route (module docstring).
@@ -229,10 +239,9 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam, failing=Non
     cost = float(np.sqrt(max(sol.objective, 0.0)) - np.sqrt(max(j_before, 0.0)))
     info.update(segment=names[j], segment_index=j, objective_after=float(sol.objective), rest_after_m=float(sol.rest_length),
                 tendon_after_m=float(max(sol.tendon_length, 0.0)), cost=cost)
-    accepted = None
-    if cost > cfg.mount_cost and failing is not None:
-        accepted = failing(solution_pam(pam, prob.finalize(best)), solution_pam(pam, prob.finalize(sol)))
-    if cost > cfg.mount_cost and accepted is None:
+    ok, accepted = cost_accepted(cost, cfg, failing, lambda: solution_pam(pam, prob.finalize(best)),
+                                 lambda: solution_pam(pam, prob.finalize(sol)))
+    if not ok:
         info.update(reason="fit cost",
                     line=f"on one straight segment ({names[j]}, resting length {best.rest_length:.3f} -> "
                          f"{sol.rest_length:.3f} m) its fit would get worse: objective {j_before:.4g} -> "
@@ -402,9 +411,9 @@ def mount_rounds(prob, best, info: dict, pam: Pam, cfg, cuts, model, rom, soluti
     sol, cost, why, accepted = start, np.inf, "no feasible round", None
     target = np.sqrt(max(best.objective, 0.0)) + cfg.mount_cost       # the root objective to reach
 
-    def slow(previous, accepted) -> bool:
-        left = np.sqrt(max(accepted.objective, 0.0)) - target
-        gained = np.sqrt(max(previous.objective, 0.0)) - np.sqrt(max(accepted.objective, 0.0))
+    def slow(previous, latest) -> bool:
+        left = np.sqrt(max(latest.objective, 0.0)) - target
+        gained = np.sqrt(max(previous.objective, 0.0)) - np.sqrt(max(latest.objective, 0.0))
         if left > ROUNDS_PACE * max(gained, 0.0):
             log.append(f"  given up: root objective {left:.3f} above the mount cost's, the last round gained {gained:.3f}")
             return True
@@ -422,10 +431,9 @@ def mount_rounds(prob, best, info: dict, pam: Pam, cfg, cuts, model, rom, soluti
                 break
             cost = float(np.sqrt(max(sol.objective, 0.0)) - np.sqrt(max(best.objective, 0.0)))
             cand = solution_pam(pam, p1.finalize(sol))
-            accepted = None
-            if cost > cfg.mount_cost and failing is not None:
-                accepted = failing(solution_pam(pam, prob.finalize(best)), cand)
-            if cost > cfg.mount_cost and accepted is None:
+            ok, accepted = cost_accepted(cost, cfg, failing, lambda: solution_pam(pam, prob.finalize(best)),
+                                         lambda: cand)
+            if not ok:
                 why = (f"fit cost: objective {best.objective:.4g} -> {sol.objective:.4g} "
                        f"(root +{cost:.3f} > mount_cost {cfg.mount_cost:g})")
                 break

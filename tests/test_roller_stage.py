@@ -170,16 +170,10 @@ INTERNAL_OBLIQUE = {
                 "location": [0.0961037602067311, 0.21000000689523302, 0.01599999013826773]}]}
 
 
-def test_roller_stage_on_internal_oblique(skel, monkeypatch, tmp_path):
-    """The stage on internal oblique's finished result (the default config's problem, one worker): its fit
-    without the bone rows passes 3 mm through the pelvis, so a roller goes there; open-ended in the fit, the
-    roller must then be 80 mm long to keep the cable at every check pose, which puts it 5.5 mm into the
-    pelvis, and moved out the fit is lost: the result stays without a roller, saying why (stop 38; before,
-    a 30 mm roller whose cable slipped off its end at 29 % of random poses was kept for a gain that was
-    mostly that slip). A result that passes both fit limits is left alone; in a warm re-run, one its warm
-    start's run tried without a gain is not tried again (and the outcome carried on), and a broken warm
-    summary is a clear error; a roller that leaves the route in bone and fits no better gets no second
-    placement round."""
+def _internal_oblique_result(monkeypatch):
+    """The run's state for the roller stage of internal oblique alone (default config with rollers, one
+    worker) and its finished result (:data:`INTERNAL_OBLIQUE`) as a given result: (run module, cfg, result,
+    human model, seed design, actuator data)."""
     from pamkin.bones import BoneSet
     from pamkin.design import design_from_dict
     from pamkin.optimize import run as R
@@ -199,6 +193,20 @@ def test_roller_stage_on_internal_oblique(skel, monkeypatch, tmp_path):
                            final.tendon_length_m)
     given = R.ActuatorResult(2, final.name, final, "given", True, z=z, relaxed=["one_segment"], n_parallel=2,
                              bone={"log": []})
+    return R, cfg, given, human, seed_design, data
+
+
+def test_roller_stage_on_internal_oblique(skel, monkeypatch, tmp_path):
+    """The stage on internal oblique's finished result (the default config's problem, one worker): its fit
+    without the bone rows passes 3 mm through the pelvis, so a roller goes there; open-ended in the fit, the
+    roller must then be 80 mm long to keep the cable at every check pose, which puts it 5.5 mm into the
+    pelvis, and moved out the fit is lost: the result stays without a roller, saying why (stop 38; before,
+    a 30 mm roller whose cable slipped off its end at 29 % of random poses was kept for a gain that was
+    mostly that slip). A result that passes both fit limits is left alone; in a warm re-run, one its warm
+    start's run tried without a gain is not tried again (and the outcome carried on), and a broken warm
+    summary is a clear error; a roller that leaves the route in bone and fits no better gets no second
+    placement round."""
+    R, cfg, given, human, seed_design, data = _internal_oblique_result(monkeypatch)
     progress = io.StringIO()
     out = R.roller_pass([given], cfg, progress)[0]
     assert "rollers: 1 actuators fail a fit limit" in progress.getvalue()
@@ -363,27 +371,10 @@ def test_roller_stage_keeps_a_roller_that_clears_and_fits_better(skel, monkeypat
     more than MIN_GAIN), so the result is the rollered one: its PAM carries the roller on the segment the fit
     put into bone, its route is the re-solved one, its bone summary names the roller, and the log ends with the
     gain. (No actuator of the default run keeps a roller since stop 38; this checks the bookkeeping.)"""
-    from pamkin.bones import BoneSet
-    from pamkin.design import design_from_dict
-    from pamkin.optimize import run as R
-    from pamkin.optimize.validation import validation_error
     import pamkin.optimize.rollers as rollers_mod
+    from pamkin.optimize.validation import validation_error
 
-    human = pamkin.gait2392()
-    rom = load_rom("robot_thesis", "r")
-    seed_design = load_design("v2_seed", bodies=human.bodies)
-    final = design_from_dict({"pams": [INTERNAL_OBLIQUE]}, "io", human.bodies).pams[0]
-    cfg = RunConfig(rollers=True, workers=1)
-    data = [actuator_data(seed_design.pam(2), human, rom, cfg, seed_design.fitting_length_m)]
-    monkeypatch.setattr(R, "_STATE", {})
-    R._STATE.update(cfg=cfg, data=data, human=human, rom=rom, validation=None, seed_design=seed_design,
-                    bones=BoneSet(human))
-    seed, regions = R._route_box(seed_design.pam(2), cfg)
-    prob = ActuatorProblem(data[0], cfg, 20, seed, regions)
-    z = prob.initial_guess([np.array(p.location) for p in final.points], final.resting_length_m,
-                           final.tendon_length_m)
-    given = R.ActuatorResult(2, final.name, final, "given", True, z=z, relaxed=["one_segment"], n_parallel=2,
-                             bone={"log": []})
+    R, cfg, given, human, seed_design, data = _internal_oblique_result(monkeypatch)
     real = rollers_mod.depths
 
     def clear(pam, *a, **k):           # the rollered route reported clear of bone, its roller 5 mm off it
