@@ -125,10 +125,21 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
     [transmission]               # per actuator: "4" = 2 puts a 2:1 pulley block on its PAM (pamkin.design:
                                  # the route moves twice the PAM's stroke at half its force); default: the
                                  # seed design's (1: direct)
+    [eyelets]                    # per actuator: "19" = "talus_r", or {body = "talus_r", at = 0.5, gap = 0.008},
+                                 # or a list of those: an eyelet (a via point on a bracket of that body) in
+                                 # the seed route's segment that passes the body between its ends' bodies,
+                                 # before the fit (pamkin.eyelets.add_eyelet: where the segment comes nearest
+                                 # the bone at the default pose, or a fraction "at" along it; "gap" [m] off
+                                 # the bone, default 0.008); the optimiser then moves it like any point.
+                                 # Default: soleus (12) nearest, peroneus tertius (19), extensor digitorum
+                                 # (22) and hallucis longus (23) half way, all on the talus; a table given
+                                 # replaces the default ([eyelets] alone: none); a route already holding a
+                                 # point on that body (a warm start's eyelet) is left as it is
 """
 
 from __future__ import annotations
 
+import copy
 import math
 import re
 import tomllib
@@ -167,10 +178,16 @@ def _is_number(v) -> bool:
 #: current design, capsule bone clearance, no unit budget. ``RunConfig(**FAST_FIT)``.
 FAST_FIT: dict = {"design": "", "multistart": 2, "max_solve_seconds": 0.0, "n_random": 0, "weight_mass": 0.0,
                   "rated_force": False, "bone_mesh": False, "max_units": 0, "sensitivity_pct": 0.0,
-                  "mount": False, "one_segment_actuators": [], "rollers": False}
+                  "mount": False, "one_segment_actuators": [], "rollers": False, "eyelets": {}}
 
 #: Actuators of the v2 seed solved with the one-segment rows by default (``one_segment_actuators``).
 ONE_SEGMENT_ACTUATORS = (13, 14)
+
+#: Default eyelets (``[eyelets]``): the tibia-to-calcaneus segment of soleus, peroneus tertius and the long toe
+#: extensors guided on the talus (measured: README "Eyelets"). Entries naming an actuator the seed design
+#: lacks, or whose route passes no such segment, are skipped (they fit the v2 seed and the thesis design).
+DEFAULT_EYELETS: dict = {"12": ["talus_r"], "19": [{"body": "talus_r", "at": 0.5}],
+                         "22": [{"body": "talus_r", "at": 0.5}], "23": [{"body": "talus_r", "at": 0.5}]}
 
 
 @dataclass
@@ -232,6 +249,7 @@ class RunConfig:
     resize_on: str = "objective"
     regions: dict[str, float | list[float]] = field(default_factory=dict)
     transmission: dict[str, int] = field(default_factory=dict)
+    eyelets: dict = field(default_factory=lambda: copy.deepcopy(DEFAULT_EYELETS))
     source: str = ""
 
     def validate(self) -> None:
@@ -243,7 +261,7 @@ class RunConfig:
             return DataFileError(self.source or "<config>", f"{key}: {msg}")
 
         for f in fields(self):
-            if f.name in ("source", "regions", "transmission"):
+            if f.name in ("source", "regions", "transmission", "eyelets"):
                 continue
             key, value = _KEYS[f.name], getattr(self, f.name)
             kind = _KINDS[f.name]
@@ -317,6 +335,25 @@ class RunConfig:
             if len(vals) not in (1, 3) or any(not _is_number(x) or x < 0 for x in vals) \
                     or (isinstance(v, list) and len(vals) != 3):
                 raise bad(f"regions.{key}", f"a non-negative number or 3 non-negative numbers [m], got {v!r}")
+        if not isinstance(self.eyelets, dict):
+            raise bad("eyelets", "must be a table")
+        for key, v in self.eyelets.items():
+            if not re.fullmatch(r"[0-9]+", str(key)):
+                raise bad(f"eyelets.{key}", "keys are actuator ids (\"19\")")
+            items = v if isinstance(v, list) else [v]
+            if not items:
+                raise bad(f"eyelets.{key}", "a body name, a table {body, at, gap} or a list of those, got []")
+            for e in items:
+                if isinstance(e, str) and e:
+                    continue
+                if not isinstance(e, dict) or not isinstance(e.get("body"), str) or not e["body"] \
+                        or set(e) - {"body", "at", "gap"}:
+                    raise bad(f"eyelets.{key}", f"a body name (\"talus_r\"), a table {{body, at, gap}} or a list "
+                                                f"of those, got {e!r}")
+                if "at" in e and not (_is_number(e["at"]) and 0 < e["at"] < 1):
+                    raise bad(f"eyelets.{key}", f"'at' is a fraction of the segment within (0, 1), got {e['at']!r}")
+                if "gap" in e and not (_is_number(e["gap"]) and 0 < e["gap"] <= 0.018):
+                    raise bad(f"eyelets.{key}", f"'gap' is a distance off the bone in (0, 0.018] m, got {e['gap']!r}")
         if not isinstance(self.transmission, dict):
             raise bad("transmission", "must be a table")
         for key, v in self.transmission.items():
@@ -361,6 +398,68 @@ class RunConfig:
             if point and point not in names:
                 raise DataFileError(self.source or "<config>", f"regions.{key}: actuator {aid} has no point "
                                                                f"{point!r} (points: {names})")
+
+    def eyelet_specs(self) -> dict[int, list[dict]]:
+        """The ``[eyelets]`` table as {actuator id: [{"body", "at", "gap"}, ...]} ("at" None: the segment's
+        nearest approach to the bone)."""
+        from pamkin.eyelets import EYELET_GAP_M  # noqa: PLC0415
+
+        out = {}
+        for k, v in self.eyelets.items():
+            out[int(k)] = [{"body": e, "at": None, "gap": EYELET_GAP_M} if isinstance(e, str) else
+                           {"body": e["body"], "at": e.get("at"), "gap": e.get("gap", EYELET_GAP_M)}
+                           for e in (v if isinstance(v, list) else [v])]
+        return out
+
+    def apply_eyelets(self, design, model, bones=None) -> tuple[object, list[str]]:
+        """The design with the ``[eyelets]`` table's eyelets put into its PAMs' routes
+        (:func:`pamkin.eyelets.add_eyelet`), and a log line per eyelet. A route that already holds a point on
+        the body (a warm start's eyelet, or the seed's own point) is left as it is. Entries of the default
+        table that do not fit the design (no such actuator, no segment passing the body) are skipped; a table
+        given in the config must fit.
+
+        Args:
+            design: Seed design.
+            model: Human model (kinematic tree, default pose).
+            bones: :class:`pamkin.bones.BoneSet` (default: the model's meshes, loaded when needed).
+
+        Raises:
+            DataFileError: naming the config file and the key, where a given entry does not fit.
+        """
+        from pamkin.errors import ConfigurationError  # noqa: PLC0415
+        from pamkin.eyelets import add_eyelet, has_eyelet  # noqa: PLC0415
+
+        default = self.eyelets == DEFAULT_EYELETS
+        ids = {p.id for p in design.pams}
+        lines: list[str] = []
+        for aid, specs in self.eyelet_specs().items():
+            if aid not in ids:
+                if default:
+                    continue
+                raise DataFileError(self.source or "<config>", f"eyelets.{aid}: names no actuator of the design "
+                                                               f"{design.name!r} (ids {sorted(ids)})")
+            for spec in specs:
+                pam, body = design.pam(aid), spec["body"]
+                if has_eyelet(pam, body):
+                    lines.append(f"eyelets: actuator {aid} {pam.name}: its route already has a point on {body}")
+                    continue
+                if bones is None:
+                    from pamkin.bones import BoneSet  # noqa: PLC0415
+
+                    bones = BoneSet(model)
+                try:
+                    new = add_eyelet(pam, model, bones, body, gap=spec["gap"], at=spec["at"])
+                except ConfigurationError as e:
+                    if default:
+                        continue
+                    raise DataFileError(self.source or "<config>", f"eyelets.{aid}: {e}") from None
+                e = next(p for p in new.points if p.name not in {q.name for q in pam.points})
+                where = "nearest its bone" if spec["at"] is None else f"{spec['at']:g} along"
+                lines.append(f"eyelets: actuator {aid} {pam.name}: {e.name} on {body} at "
+                             f"({', '.join(f'{1e3 * c:.1f}' for c in e.location)}) mm, {1e3 * spec['gap']:g} mm "
+                             f"off its bone (the seed segment's point {where})")
+                design = design.replace_pam(new)
+        return design, lines
 
     def apply_transmission(self, design):
         """The design with the ``[transmission]`` table's ratios put on its PAMs (others unchanged). A PAM whose
@@ -433,7 +532,7 @@ def load_config(path: str | Path | None) -> RunConfig:
                 if k not in _SECTIONS[key]:
                     raise DataFileError(str(path), f"unknown key {key}.{k}; known: {sorted(_SECTIONS[key])}")
                 kwargs[_SECTIONS[key][k]] = v
-        elif key in ("regions", "transmission"):
+        elif key in ("regions", "transmission", "eyelets"):
             if not isinstance(value, dict):
                 raise DataFileError(str(path), f"[{key}] must be a table")
             kwargs[key] = dict(value)

@@ -1540,9 +1540,18 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, o
     skeleton = robot_skeleton()
     kw = {"bodies": skeleton.bodies, "coordinates": skeleton.coordinates}
     seed = load_design(cfg.design, **kw) if cfg.design else load_design(**kw)
+    eyelets: list[str] = []
+    if cfg.eyelets:         # before the warm start: its routes hold the same eyelets (same names), kept
+        import pamkin  # noqa: PLC0415
+
+        seed, eyelets = cfg.apply_eyelets(seed, pamkin.gait2392())
     warm_ids: set[int] = set()
     if cfg.warm_start:
         seed, warm_ids = warm_seed(seed, load_design(Path(cfg.warm_start) / "design.yaml", **kw))
+        if cfg.eyelets:     # a warm route without its eyelet (a run without them) gets it too
+            seed, eyelets = cfg.apply_eyelets(seed, pamkin.gait2392())
+    for line in eyelets:
+        print(line, file=stream, flush=True)
     _STATE["warm_ids"] = warm_ids      # these actuators try their warm diameter and count first
     rolled = [p.id for p in seed.pams if p.rollers]
     if rolled:
@@ -1557,7 +1566,8 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, o
     out_dir.mkdir(parents=True, exist_ok=True)
     log = [f"pamkin optimize: seed design {seed.name!r} ({seed.path}), config {cfg.source or 'defaults'}",
            f"workers {cfg.workers}, multistart {cfg.multistart}, diameters {cfg.diameters_mm}, "
-           f"max_parallel {cfg.max_parallel}, force model {cfg.force_model}, pressure {cfg.pressure_Pa:.0f} Pa"]
+           f"max_parallel {cfg.max_parallel}, force model {cfg.force_model}, pressure {cfg.pressure_Pa:.0f} Pa",
+           *eyelets]
     _STATE["walking"] = None
     try:
         with _one_blas_thread():       # every solve on one BLAS thread, here as in the workers
