@@ -127,7 +127,8 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  # seed design's (1: direct)
     [eyelets]                    # per actuator: "19" = "talus_r", or {body = "talus_r", at = 0.5, gap = 0.008},
                                  # or a list of those: an eyelet (a via point on a bracket of that body) in
-                                 # the seed route's segment that passes the body between its ends' bodies,
+                                 # the seed route (of an optimised actuator) where it passes the body between
+                                 # its segment's ends' bodies,
                                  # before the fit (pamkin.eyelets.add_eyelet: where the segment comes nearest
                                  # the bone at the default pose, or a fraction "at" along it; "gap" [m] off
                                  # the bone, default 0.008); the optimiser then moves it like any point.
@@ -412,11 +413,12 @@ class RunConfig:
         return out
 
     def apply_eyelets(self, design, model, bones=None) -> tuple[object, list[str]]:
-        """The design with the ``[eyelets]`` table's eyelets put into its PAMs' routes
-        (:func:`pamkin.eyelets.add_eyelet`), and a log line per eyelet. A route that already holds a point on
-        the body (a warm start's eyelet, or the seed's own point) is left as it is. Entries of the default
-        table that do not fit the design (no such actuator, no segment passing the body) are skipped; a table
-        given in the config must fit.
+        """The design with the ``[eyelets]`` table's eyelets put into the routes of the actuators the run
+        optimises (``actuators``; all when empty: an eyelet changes the route's lengths, which only a fit
+        makes good), with a log line per eyelet (:func:`pamkin.eyelets.add_eyelet`). A route that already
+        holds a point on the body (a warm start's eyelet, or the seed's own point) is left as it is. Entries of
+        the default table that do not fit the design (no such actuator, no segment passing the body) are
+        skipped; a table given in the config must fit.
 
         Args:
             design: Seed design.
@@ -438,6 +440,8 @@ class RunConfig:
                     continue
                 raise DataFileError(self.source or "<config>", f"eyelets.{aid}: names no actuator of the design "
                                                                f"{design.name!r} (ids {sorted(ids)})")
+            if self.actuators and aid not in self.actuators:
+                continue                    # not optimised: its route (and lengths) stay the seed's
             for spec in specs:
                 pam, body = design.pam(aid), spec["body"]
                 if has_eyelet(pam, body):

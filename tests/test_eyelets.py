@@ -120,6 +120,9 @@ def test_config_eyelets_default_apply_and_idempotent(human, bones, seed):
     again, lines2 = cfg.apply_eyelets(out, human, bones)           # a warm start's routes: left as they are
     assert again.pams == out.pams and all("already has a point on talus_r" in line for line in lines2)
     assert RunConfig(**FAST_FIT).eyelets == {}
+    # only the actuators a run optimises get theirs (the others keep the seed's route and lengths)
+    sub, lines3 = RunConfig(actuators=[9, 19]).apply_eyelets(seed, human, bones)
+    assert [p.id for p in sub.pams if p != seed.pam(p.id)] == [19] and len(lines3) == 1
     # the default table skips what does not fit a design (here: a design without actuator 22)
     from pamkin.design import Design
 
