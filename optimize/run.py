@@ -1503,18 +1503,20 @@ def _write_summary(out_dir: Path, summary: dict) -> None:
     atomic_write(out_dir / "summary.json", json.dumps(finite_or_none(summary), indent=2, allow_nan=False))
 
 
-def warm_seed(seed: Design, warm: Design) -> tuple[Design, set[int]]:
+def warm_seed(seed: Design, warm: Design, names: Design | None = None) -> tuple[Design, set[int]]:
     """``seed`` with every PAM it shares with ``warm`` (a finished run's design) replaced by the warm one, and
     their ids. A warm route's rollers and detour via points are not kept (:func:`pamkin.detour.remove_via`:
     the points the seed route does not have, their length off the tendon again): the roller stage
-    (``limits.rollers``) and the detours (``limits.detours``) place them again."""
+    (``limits.rollers``) and the detours (``limits.detours``) place them again. ``names`` (default ``seed``):
+    the design whose route points a warm route may keep (the seed with every eyelet of the run's table)."""
     from pamkin.detour import remove_via  # noqa: PLC0415
 
+    names = names or seed
     ids = set()
     for p in warm.pams:
         if p.id in {q.id for q in seed.pams}:
             try:
-                p = remove_via(p, {pt.name for pt in seed.pam(p.id).points})
+                p = remove_via(p, {pt.name for pt in names.pam(p.id).points})
             except ValueError as e:      # a warm route with points the seed's does not have on other bodies
                 raise DataFileError(warm.path or "<warm start>", f"{e}: not a run of this seed design") from None
             seed = seed.replace_pam(dataclasses.replace(p, rollers=()))
@@ -1541,15 +1543,22 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, o
     kw = {"bodies": skeleton.bodies, "coordinates": skeleton.coordinates}
     seed = load_design(cfg.design, **kw) if cfg.design else load_design(**kw)
     eyelets: list[str] = []
-    if cfg.eyelets:         # before the warm start: its routes hold the same eyelets (same names), kept
+    names = None
+    if cfg.eyelets:         # the optimised actuators' eyelets (pamkin.eyelets), before the warm start
         import pamkin  # noqa: PLC0415
+        from pamkin.bones import BoneSet  # noqa: PLC0415
 
-        seed, eyelets = cfg.apply_eyelets(seed, pamkin.gait2392())
+        human = pamkin.gait2392()
+        bones = BoneSet(human)
+        # every eyelet of the table names the route points a warm start's routes may hold (a warm run's
+        # actuators not optimised here keep theirs, lengths and all)
+        names = dataclasses.replace(cfg, actuators=[]).apply_eyelets(seed, human, bones)[0]
+        seed, eyelets = cfg.apply_eyelets(seed, human, bones)
     warm_ids: set[int] = set()
     if cfg.warm_start:
-        seed, warm_ids = warm_seed(seed, load_design(Path(cfg.warm_start) / "design.yaml", **kw))
-        if cfg.eyelets:     # a warm route without its eyelet (a run without them) gets it too
-            seed, eyelets = cfg.apply_eyelets(seed, pamkin.gait2392())
+        seed, warm_ids = warm_seed(seed, load_design(Path(cfg.warm_start) / "design.yaml", **kw), names)
+        if cfg.eyelets:     # an optimised actuator's warm route without its eyelet (a run without them) gets it
+            seed, eyelets = cfg.apply_eyelets(seed, human, bones)
     for line in eyelets:
         print(line, file=stream, flush=True)
     _STATE["warm_ids"] = warm_ids      # these actuators try their warm diameter and count first

@@ -211,3 +211,24 @@ def test_default_run_fits_peroneus_tertius_with_its_talus_eyelet(tmp_path):
     nr0, worst0 = errors["without"]
     assert nr0 > 0.15 and worst0 > 0.25, errors        # without: both audit fit limits failed (0.42 / 0.42)
     assert worst <= 0.25 and nr < 0.5 * nr0, errors    # with: the worst-coordinate limit met, NRMSE halved (0.19)
+
+
+def test_warm_start_keeps_the_eyelets_of_actuators_not_optimised(human, bones, seed):
+    """A run optimising one actuator, warm-started from a run with the default eyelets: the warm routes keep
+    their eyelets (the names come from the seed with every eyelet of the table), also those of actuators
+    this run does not optimise (their lengths are the warm run's); without those names the warm route's
+    talus point is foreign to the seed and the warm start is refused (pamkin.detour.remove_via)."""
+    import dataclasses
+
+    from pamkin.optimize.config import RunConfig
+    from pamkin.optimize.run import warm_seed
+
+    cfg = RunConfig(actuators=[9])
+    full, _ = dataclasses.replace(cfg, actuators=[]).apply_eyelets(seed, human, bones)
+    warm = full.replace_pam(dataclasses.replace(full.pam(19), resting_length_m=0.3, tendon_length_m=0.1))
+    sub, lines = cfg.apply_eyelets(seed, human, bones)
+    assert sub == seed and lines == []                # actuator 9 has no default eyelet
+    out, ids = warm_seed(sub, warm, full)
+    assert out.pam(19) == warm.pam(19) and has_eyelet(out.pam(19), "talus_r") and 19 in ids
+    with pytest.raises(DataFileError, match="not a run of this seed design"):
+        warm_seed(sub, warm)
