@@ -179,14 +179,18 @@ def same_body_segments(pam) -> list[int]:
             if type(pts[a]) is PathPoint and type(pts[a + 1]) is PathPoint and pts[a].body == pts[a + 1].body]
 
 
-def via_name(pam, a: int, k: int) -> str:
-    """Name of the ``k``-th via point (from 1) of the detour of segment ``a``: ``"p3.p4.1"``, not yet used."""
+def unused_name(pam, base: str, sep: str = ".") -> str:
+    """``base``, else ``base{sep}1``, ``base{sep}2``, ...: the first that names no point of ``pam``'s route."""
     names = {p.name for p in pam.points}
-    base = f"{pam.points[a].name}.{pam.points[a + 1].name}.{k}"
     name, i = base, 1
     while name in names:
-        name, i = f"{base}.{i}", i + 1
+        name, i = f"{base}{sep}{i}", i + 1
     return name
+
+
+def via_name(pam, a: int, k: int) -> str:
+    """Name of the ``k``-th via point (from 1) of the detour of segment ``a``: ``"p3.p4.1"``, not yet used."""
+    return unused_name(pam, f"{pam.points[a].name}.{pam.points[a + 1].name}.{k}")
 
 
 def insert_via(pam, via: dict[int, list[np.ndarray]]):

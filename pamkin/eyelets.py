@@ -56,12 +56,9 @@ def intermediate_bodies(model, body_a: str, body_b: str) -> list[str]:
 
 def eyelet_name(pam, segment: int) -> str:
     """Name of an eyelet in segment ``segment`` of ``pam``'s route: ``"p2.p3.e"``, not yet used."""
-    names = {p.name for p in pam.points}
-    base = f"{pam.points[segment].name}.{pam.points[segment + 1].name}.e"
-    name, i = base, 1
-    while name in names:
-        name, i = f"{base}{i}", i + 1
-    return name
+    from .detour import unused_name  # noqa: PLC0415
+
+    return unused_name(pam, f"{pam.points[segment].name}.{pam.points[segment + 1].name}.e", sep="")
 
 
 def has_eyelet(pam, body: str) -> bool:
