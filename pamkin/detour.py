@@ -206,10 +206,10 @@ def insert_via(pam, via: dict[int, list[np.ndarray]]):
             for k, v in enumerate(via[a], 1):
                 out.append(PathPoint(via_name(pam, a, k), body, tuple(float(x) for x in v)))
             extra += detour_length(np.array(p.location), np.array(pts[a + 1].location), via[a])
-    return _pam_on_kept(dataclasses.replace(pam, points=tuple(out), tendon_length_m=pam.tendon_length_m + extra))
+    return pam_on_kept(dataclasses.replace(pam, points=tuple(out), tendon_length_m=pam.tendon_length_m + extra))
 
 
-def _pam_on_kept(pam):
+def pam_on_kept(pam):
     """``pam`` with its ``pam_on`` dropped where that segment no longer exists (split by a detour, or joined
     again): the PAM body then sits where it fits best (:func:`pamkin.pam_body.placement`)."""
     from .pam_body import segment_names  # noqa: PLC0415
@@ -323,4 +323,4 @@ def remove_via(pam, keep: set[str]):
         out.append(pts[kept[-1]])
     if len(out) == len(pts):
         return pam
-    return _pam_on_kept(dataclasses.replace(pam, points=tuple(out), tendon_length_m=pam.tendon_length_m - extra))
+    return pam_on_kept(dataclasses.replace(pam, points=tuple(out), tendon_length_m=pam.tendon_length_m - extra))

@@ -96,10 +96,11 @@ def add_eyelet(pam, model, bones, body: str, *, gap: float = EYELET_GAP_M, at: f
         q: Pose (n_coordinates,) [rad, m]; default: the model's default pose.
 
     Raises:
-        ConfigurationError: No or more than one segment passes ``body``; ``gap`` or ``at`` out of range;
-            ``body`` unknown or without a bone mesh.
+        ConfigurationError: No or more than one segment passes ``body``, or that segment carries a roller;
+            ``gap`` or ``at`` out of range; ``q`` not finite; ``body`` unknown or without a bone mesh.
     """
-    from .pam_body import route_positions  # noqa: PLC0415
+    from .detour import pam_on_kept  # noqa: PLC0415
+    from .pam_body import segment_names  # noqa: PLC0415
 
     if not (gap > 0 and np.isfinite(gap)) or not (at is None or 0.0 < at < 1.0):
         raise ConfigurationError(f"actuator {pam.id} {pam.name}: eyelet gap must be > 0 and 'at' within (0, 1), "
@@ -107,9 +108,15 @@ def add_eyelet(pam, model, bones, body: str, *, gap: float = EYELET_GAP_M, at: f
     if body not in model.kinematics.frames:
         raise ConfigurationError(f"actuator {pam.id} {pam.name}: unknown body {body!r} for an eyelet")
     j = _segment_on(pam, model, body)
+    if any(r.segment == segment_names(pam)[j] for r in pam.rollers):
+        raise ConfigurationError(f"actuator {pam.id} {pam.name}: segment {segment_names(pam)[j]} carries a roller; "
+                                 "an eyelet would split it (remove the roller first)")
     q = model.default_q if q is None else np.asarray(q, float)
+    if q.shape != model.default_q.shape or not np.all(np.isfinite(q)):
+        raise ConfigurationError(f"actuator {pam.id} {pam.name}: the eyelet's pose must be "
+                                 f"{model.default_q.size} finite coordinate values")
     state = model.kinematics.forward(q[None], warn_range=False)
-    pts = _route_at(pam, model, state, route_positions)
+    pts = _route_at(pam, model, state)
     b = list(model.kinematics.frames).index(body)
     R, p = state.body_R[0, b], state.body_p[0, b]
     A, B = R.T @ (pts[j] - p), R.T @ (pts[j + 1] - p)          # the segment in the body's frame
@@ -125,18 +132,13 @@ def add_eyelet(pam, model, bones, body: str, *, gap: float = EYELET_GAP_M, at: f
     loc = c[k] + gap * n[k]
     new = PathPoint(eyelet_name(pam, j), body, tuple(float(v) for v in loc))
     points = pam.points[:j + 1] + (new,) + pam.points[j + 1:]
-    out = dataclasses.replace(pam, points=tuple(points))
-    if getattr(out, "pam_on", None) is not None:           # the segment it named is split
-        from .pam_body import segment_names  # noqa: PLC0415
-
-        if out.pam_on not in segment_names(out):
-            out = dataclasses.replace(out, pam_on=None)
-    return out
+    return pam_on_kept(dataclasses.replace(pam, points=tuple(points)))     # a pam_on it split is dropped
 
 
-def _route_at(pam, model, state, route_positions) -> np.ndarray:
+def _route_at(pam, model, state) -> np.ndarray:
     """World positions (n_points, 3) of ``pam``'s route points at the one pose of ``state``."""
     from .design import Design  # noqa: PLC0415
+    from .pam_body import route_positions  # noqa: PLC0415
     from .robot import PamRobot  # noqa: PLC0415
 
     robot = PamRobot(Design("eyelet", (pam,)), model, sides=("r",))

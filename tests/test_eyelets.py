@@ -98,6 +98,26 @@ def test_eyelet_errors(human, bones, seed):
         add_eyelet(seed.pam(19), human, bones, "talus_r", at=1.0)
     with pytest.raises(ConfigurationError, match="not joined"):
         intermediate_bodies(human, "tibia_r", "moon")
+    with pytest.raises(ConfigurationError, match="eyelet's pose must be"):
+        add_eyelet(seed.pam(19), human, bones, "talus_r", q=np.full(human.default_q.shape, np.nan))
+    import dataclasses
+
+    from pamkin.rollers import Roller
+
+    rolled = dataclasses.replace(seed.pam(19), rollers=(Roller("p2->p3", "talus_r", (0.0, 0.0, 0.0), (0.0, 0.0, 1.0),
+                                                              (1.0, 0.0, 0.0), 0.005),))
+    with pytest.raises(ConfigurationError, match="segment p2->p3 carries a roller"):
+        add_eyelet(rolled, human, bones, "talus_r")
+
+
+def test_eyelet_drops_a_pam_on_it_splits(human, bones, seed):
+    """A PAM anchored on the segment the eyelet splits (``pam_on``) loses that anchor (the placement then
+    chooses again); one anchored elsewhere keeps it."""
+    import dataclasses
+
+    pam = seed.pam(19)
+    assert add_eyelet(dataclasses.replace(pam, pam_on="p2->p3"), human, bones, "talus_r").pam_on is None
+    assert add_eyelet(dataclasses.replace(pam, pam_on="p1->p2"), human, bones, "talus_r").pam_on == "p1->p2"
 
 
 def test_config_eyelets_default_apply_and_idempotent(human, bones, seed):
