@@ -108,6 +108,12 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      resize_above), is solved again with a 3:1 block throughout (same diameter and
                                  #      count: first phase, bone rounds, one-segment stage); the lower score kept,
                                  #      never a PAM off its straight segment (0: off; optimize.run.block_tasks)
+    reallocate = true            # (v2, with bone_mesh and max_units) after the re-sizing: a PAM unit of an actuator
+                                 #      with several that fails both audit fit limits on the validation poses
+                                 #      (its units buy no pass) moves to the failing actuator nearest to passing
+                                 #      (at most 2 tried, one more unit each: bone rounds and one-segment stage),
+                                 #      where that one then passes both within 0.02 and the robot's mass stays
+                                 #      within max_mass_kg; the unit budget holds (optimize.run.reallocate_pass)
     resize_on = "objective"      # (v2) what the re-sizing compares: "objective" (score: fit objective + mass
                                  #      penalty) or "validation" (primary NRMSE + worst error on 400 poses like
                                  #      the audit's from the optimiser's own stream, optimize.validation)
@@ -162,7 +168,7 @@ _SECTIONS = {
                "one_segment": "one_segment", "one_segment_actuators": "one_segment_actuators", "mount": "mount", "mount_cost": "mount_cost", "mount_failing": "mount_failing", "mount_passing": "mount_passing", "mount_blocks": "mount_blocks", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
                "bone_seed_start": "bone_seed_start", "bracket_fit": "bracket_fit",
                "max_units": "max_units", "walking_min": "walking_min",
-               "pam_clearance": "pam_clearance", "rollers": "rollers", "detours": "detours", "resize_above": "resize_above", "block_refit_above": "block_refit_above",
+               "pam_clearance": "pam_clearance", "rollers": "rollers", "detours": "detours", "resize_above": "resize_above", "block_refit_above": "block_refit_above", "reallocate": "reallocate",
                "max_mass_kg": "max_mass_kg", "pam_ends": "pam_ends", "resize_on": "resize_on"},
 }
 
@@ -245,6 +251,7 @@ class RunConfig:
     walking_min: float = 0.9
     resize_above: float = 1.0
     block_refit_above: float = 0.5
+    reallocate: bool = True
     max_mass_kg: float = 22.0
     pam_ends: bool = True
     resize_on: str = "objective"

@@ -413,7 +413,10 @@ def _finish_choice(task: tuple) -> ActuatorResult:
 
     A task ``(k, key, z, t)`` puts the PAM on a ``t``:1 pulley block throughout (:func:`block_start`): the
     first phase's fit of ``key`` (else ``z``) re-fitted with the block, then the bone rounds and the
-    one-segment stage with it."""
+    one-segment stage with it. A task ``(k, key, z, t, start[, keep])`` (``t`` the seed's ratio: no block)
+    always starts from ``z``, named ``start`` in the attempts: the route as it is where it meets every limit
+    with ``key`` (status "given", as a warm start), else solved from it; with ``keep`` true a PAM on one
+    straight segment at ``z`` is solved with that segment's rows (it stays on it)."""
     from .problem import ActuatorProblem  # noqa: PLC0415
 
     k, key, z_start, *more = task
@@ -439,7 +442,7 @@ def _finish_choice(task: tuple) -> ActuatorResult:
         if not sol.success:
             return _result(pam, data, prob, sol, first.attempts + [_attempt(key, start, sol, relax, t)],
                            t0 - first.seconds, {})
-    elif key in first.candidates:
+    elif key in first.candidates and len(more) < 2:
         _, sol, relax = first.candidates[key]
         prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax, _bracket(pam, seed, regions, cfg),
                                sol.mount_segment)
@@ -447,8 +450,25 @@ def _finish_choice(task: tuple) -> ActuatorResult:
     else:
         relax = frozenset(first.relaxed)
         prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax, _bracket(pam, seed, regions, cfg))
-        sol = prob.solve(np.clip(np.asarray(z_start, float), prob.lbx, prob.ubx), key[1])
-        start = "walking check (from the solved route)"
+        sol = None
+        if len(more) > 1:
+            # the solved route as it is, with the new count, where it meets every limit (as a warm start taken
+            # as given: the bone rounds go on from a route already clear of bone), else solved from it; with
+            # ``keep``, a PAM on one straight segment keeps it (the problem has its one-segment rows, as a warm
+            # start's), else the one-segment stage puts it on one again
+            start, keep = more[1], len(more) > 2 and bool(more[2])
+            if keep and cfg.mount and not cfg.one_segment_for(pam.id):
+                from .mount import mounted_segment  # noqa: PLC0415
+
+                on = mounted_segment(prob, np.asarray(z_start, float))
+                if on is not None:
+                    prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax, _bracket(pam, seed, regions, cfg),
+                                           on)
+            sol = prob.evaluate(np.asarray(z_start, float), key[1])
+        else:
+            start = "walking check (from the solved route)"
+        if sol is None or not sol.success:
+            sol = prob.solve(np.clip(np.asarray(z_start, float), prob.lbx, prob.ubx), key[1])
         if not sol.success:
             return _result(pam, data, prob, sol, first.attempts, t0 - first.seconds, {})
     best, bone, cuts = _bone_rounds(prob, sol, pam, cfg)
@@ -1077,6 +1097,8 @@ def solve_all(seed_design: Design, cfg: RunConfig, stream=sys.stderr) -> list[Ac
                           cost=[r.seconds for r in results]), key=lambda r: order[r.id])
     if cfg.bone_mesh and cfg.resize_above > 0:
         results = resize_pass(results, cfg, stream)
+    if cfg.bone_mesh and cfg.reallocate:
+        results = reallocate_pass(results, cfg, stream)
     if cfg.max_mass_kg > 0:
         results = mass_pass(seed_design, results, cfg, stream)
     if cfg.walking_min > 0:
@@ -1181,6 +1203,131 @@ def resize_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr
         for line in lines:
             print(f"actuator {r.id} {r.name}:{line[1:]}", file=stream, flush=True)
         out[k] = dataclasses.replace(best, bone=dict(best.bone, log=list(best.bone.get("log", [])) + lines))
+    return out
+
+
+#: The unit reallocation (:func:`reallocate_pass`) tries at most this many receivers (one solve each, in the
+#: workers: about one actuator's bone rounds of wall time on 2 cores) ...
+REALLOCATE_TRIES = 2
+#: ... among the actuators failing an audit fit limit whose errors are at most this many times the limits
+#: (validation NRMSE / 0.15 and worst error / 0.25, the larger): near passing, where one more unit can decide.
+REALLOCATE_NEAR = 1.5
+#: ``start`` of a reallocated actuator's new attempt.
+REALLOCATE_START = "unit reallocation (from the solved route)"
+
+
+def reallocate_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.stderr) -> list[ActuatorResult]:
+    """Move PAM units to where they make a PAM pass (after :func:`resize_pass`).
+
+    The unit budget is spent on the first phase's fits, made without the bone meshes; after the bone rounds an
+    actuator with several units may fail both of the audit's fit limits (primary NRMSE and worst error about a
+    crossed coordinate, on the optimiser's own validation poses, :mod:`optimize.validation`) while one with a
+    single unit narrowly fails one. Donors: results with ``n_parallel >= 2`` failing both limits (a warm start
+    that held is not one: its run had the same chance). Receivers: the other results failing a limit, within
+    :data:`REALLOCATE_NEAR` of the limits, nearest first, at most :data:`REALLOCATE_TRIES` per donor unit, each
+    re-solved with one more unit from its solved route (bone rounds and one-segment stage, in the workers),
+    the donor with one fewer; the receivers that pass take the units, the most audit limits newly passed
+    first, then the smallest error. A move is kept where the receiver then passes both limits within
+    :data:`PASS_MARGIN`, the donor's re-solve succeeds, both are clear of bone and on one straight segment
+    where they were, and the robot's estimated mass stays within ``cfg.max_mass_kg``: the unit count does
+    not change. Only direct (1:1) results take part. Each moved actuator's bone log says so."""
+    from pamkin.audit import load_limits  # noqa: PLC0415
+
+    from .validation import validation_error  # noqa: PLC0415
+
+    thr = load_limits()["thresholds"]
+    lim_n, lim_w = thr["nrmse_good"], thr["worst_coordinate_error_good"]
+    q, T = _validation_set()
+    seed = _STATE["seed_design"]
+
+    def errors(r: ActuatorResult, k: int) -> tuple[float, float]:
+        return validation_error(r.pam, _STATE["human"], q, T, list(_STATE["data"][k].crossed or []), seed)
+
+    def direct(r: ActuatorResult, k: int) -> bool:
+        return (r.success and r.z is not None and r.objective is not None
+                and r.pam.transmission == _STATE["data"][k].pam.transmission == 1)
+
+    err = {k: errors(r, k) for k, r in enumerate(results) if direct(r, k)}
+    donors = [k for k, (nr, w) in err.items() if results[k].n_parallel >= 2 and nr > lim_n and w > lim_w
+              and not _STATE["first"][k].warm]
+    near = sorted((max(nr / lim_n, w / lim_w), k) for k, (nr, w) in err.items()
+                  if (nr > lim_n or w > lim_w) and k not in donors
+                  and results[k].n_parallel < min(cfg.max_parallel, _STATE.get("n_cap", cfg.max_parallel)))
+    receivers = [k for ratio, k in near if ratio <= REALLOCATE_NEAR][:REALLOCATE_TRIES * len(donors)]
+    if not donors or not receivers:
+        return results
+
+    def task(k: int, dn: int) -> tuple:
+        # the donor keeps its straight segment (its fit fails either way); a receiver's fit decides where
+        # the one-segment stage puts it (measured: peroneus tertius at 10 mm x2 with its segment's rows
+        # 0.155, put on one afterwards 0.105)
+        r = results[k]
+        return (k, (r.pam.diameter_mm, r.n_parallel + dn), r.z, 1, REALLOCATE_START, dn < 0)
+
+    def size(k: int, dn: int = 0) -> str:
+        return f"{results[k].pam.diameter_mm} mm x{results[k].n_parallel + dn}"
+
+    print("unit reallocation: " + ", ".join(f"{results[k].id} {results[k].name} ({size(k)}, validation "
+                                             f"{err[k][0]:.3f}/{err[k][1]:.3f})" for k in donors)
+          + " fail both fit limits; tried with one unit more: " + ", ".join(
+              f"{results[k].id} {results[k].name} ({size(k)}, {err[k][0]:.3f}/{err[k][1]:.3f})" for k in receivers),
+          file=stream, flush=True)
+    tasks = [task(k, -1) for k in donors] + [task(k, +1) for k in receivers]
+    done = {(a.id, a.n_parallel): a for a in _map(_finish_choice, tasks, cfg, stream)}
+    out = list(results)
+    lines: dict[int, list[str]] = {}
+    def failed(a: ActuatorResult | None, k: int) -> str:
+        """Why the re-solve ``a`` of actuator ``k`` cannot be kept ('' where it can)."""
+        if a is None:
+            return "not solved"
+        if not a.success:
+            return a.status
+        if not a.bone.get("clear", True):
+            return "not clear of bone"
+        return "leaves its straight segment" if results[k].mount.get("mounted") and not a.mount.get("mounted") else ""
+
+    free = [k for k in donors if not failed(done.get((results[k].id, results[k].n_parallel - 1)), k)]
+    for k in donors:
+        if k not in free:
+            why = failed(done.get((results[k].id, results[k].n_parallel - 1)), k)
+            lines.setdefault(k, []).append(f"  unit reallocation: {size(k, -1)} not kept ({why})")
+    passing = []
+    for k in receivers:
+        a = done.get((results[k].id, results[k].n_parallel + 1))
+        if failed(a, k):
+            lines.setdefault(k, []).append(f"  unit reallocation: {size(k, +1)}: {failed(a, k)} (not kept)")
+            continue
+        nr, w = errors(a, k)
+        said = f"  unit reallocation: {size(k, +1)}: validation {nr:.3f}/{w:.3f} (was {err[k][0]:.3f}/{err[k][1]:.3f})"
+        if nr > lim_n - PASS_MARGIN or w > lim_w - PASS_MARGIN:
+            lines.setdefault(k, []).append(f"{said}: not kept (not within both limits less {PASS_MARGIN:g})")
+            continue
+        gained = (err[k][0] > lim_n) + (err[k][1] > lim_w)         # audit fit limits it newly passes
+        passing.append((-gained, max(nr / lim_n, w / lim_w), k, a, said))
+    for _, _, k, a, said in sorted(passing, key=lambda t: t[:3]):
+        r = results[k]
+        if not free:
+            lines.setdefault(k, []).append(f"{said}: not kept (no donor unit left)")
+            continue
+        j = free[0]
+        trial = list(out)
+        trial[k], trial[j] = a, done[(results[j].id, results[j].n_parallel - 1)]
+        mass = design_mass(seed, trial)
+        if cfg.max_mass_kg > 0 and mass > cfg.max_mass_kg:
+            lines.setdefault(k, []).append(f"{said}: not kept (mass {mass:.2f} kg > {cfg.max_mass_kg:g})")
+            continue
+        free.pop(0)
+        out = trial
+        lines.setdefault(k, []).append(f"{said}: kept, its unit from {results[j].id} {results[j].name}")
+        nr_j, w_j = errors(out[j], j)
+        lines.setdefault(j, []).append(f"  unit reallocation: {size(j, -1)} (a unit to {r.id} {r.name}): validation "
+                                       f"{nr_j:.3f}/{w_j:.3f} (was {err[j][0]:.3f}/{err[j][1]:.3f})")
+    for k in free:
+        lines.setdefault(k, []).append(f"  unit reallocation: kept {size(k)} (no receiver passed with its unit)")
+    for k, said in lines.items():
+        for line in said:
+            print(f"actuator {out[k].id} {out[k].name}:{line[1:]}", file=stream, flush=True)
+        out[k] = dataclasses.replace(out[k], bone=dict(out[k].bone, log=list(out[k].bone.get("log", [])) + said))
     return out
 
 

@@ -1414,3 +1414,178 @@ def test_passing_fit_accepts_a_mount_that_keeps_both_audit_fit_limits(monkeypatc
     calls.clear()
     both = run_mod._failing_fit(["knee_angle_r"], already_failing=True, still_passing=True)("spanning", "mounted")
     assert both == reason and calls == ["spanning", "mounted"]
+
+
+def test_reallocate_pass_moves_a_unit_to_where_it_makes_a_pam_pass(monkeypatch):
+    """optimize.run.reallocate_pass: an actuator with two units failing both audit fit limits on the
+    validation poses (internal oblique) gives one to the failing actuator nearest to passing that then
+    passes both within PASS_MARGIN (peroneus tertius, re-solved with one more unit from its solved route);
+    a receiver that still fails (external oblique) or one far from passing (biceps femoris, not tried) keeps
+    its size; the unit count stays. A warm donor that held, the mass budget and no passing receiver leave
+    every result as it was."""
+    import types
+
+    from pamkin.optimize import validation as validation_mod
+
+    cfg = RunConfig(workers=1)
+    errors = {(2, 2): (0.25, 0.39), (2, 1): (0.26, 0.92), (19, 1): (0.197, 0.197), (19, 2): (0.097, 0.097),
+              (3, 1): (0.114, 0.291), (3, 2): (0.12, 0.27), (4, 1): (0.37, 0.77), (12, 1): (0.05, 0.05)}
+
+    def result(aid: int, n: int):
+        r = _fake_result(aid, {})
+        r.pam = dataclasses.replace(r.pam, n_parallel=n, transmission=1)
+        r.n_parallel, r.objective, r.z = n, 0.1, np.zeros(3)
+        r.bone, r.mount = {"clear": True, "log": []}, {"mounted": True}
+        return r
+
+    now = [result(2, 2), result(19, 1), result(3, 1), result(4, 1), result(12, 1)]
+    crossed = types.SimpleNamespace(crossed=["x"], pam=types.SimpleNamespace(transmission=1))
+    monkeypatch.setitem(run_mod._STATE, "data", [crossed] * len(now))
+    monkeypatch.setitem(run_mod._STATE, "first", {k: _fake_result(r.id, {}) for k, r in enumerate(now)})
+    monkeypatch.setitem(run_mod._STATE, "seed_design", load_design())
+    monkeypatch.setitem(run_mod._STATE, "human", None)
+    monkeypatch.setitem(run_mod._STATE, "n_cap", 3)
+    monkeypatch.setattr(run_mod, "_validation_set", lambda: (None, None))
+    monkeypatch.setattr(validation_mod, "validation_error", lambda pam, *a: errors[(pam.id, pam.n_parallel)])
+    calls = []
+
+    def finish(task):
+        k, key, z, t, start, keep = task
+        assert keep == (key[1] < now[k].n_parallel)         # the donor keeps its straight segment
+        calls.append((now[k].id, key))
+        assert z is now[k].z and t == 1 and start == run_mod.REALLOCATE_START
+        return result(now[k].id, key[1])
+
+    monkeypatch.setattr(run_mod, "_finish_choice", finish)
+    stream = io.StringIO()
+    out = run_mod.reallocate_pass(now, cfg, stream)
+    # tried: the donor with one unit fewer, the two receivers nearest to passing with one more
+    assert sorted((aid, key[1]) for aid, key in calls) == [(2, 1), (3, 2), (19, 2)]
+    assert [r.n_parallel for r in out] == [1, 2, 1, 1, 1]
+    assert sum(r.n_parallel for r in out) == sum(r.n_parallel for r in now)
+    assert out[3] is now[3] and out[4] is now[4]
+    assert any("validation 0.097/0.097 (was 0.197/0.197): kept, its unit from 2 Internal Oblique" in line
+               for line in out[1].bone["log"])
+    assert any("not kept (not within both limits less 0.02)" in line for line in out[2].bone["log"])
+    assert out[2].n_parallel == 1
+    assert "(a unit to 19 Peroneus Tertius): validation 0.260/0.920 (was 0.250/0.390)" in out[0].bone["log"][-1]
+    assert "unit reallocation: 2 Internal Oblique" in stream.getvalue()
+    # the mass budget: the move is not kept, the donor keeps its units
+    out = run_mod.reallocate_pass(now, dataclasses.replace(cfg, max_mass_kg=1.0), io.StringIO())
+    assert [r.n_parallel for r in out] == [2, 1, 1, 1, 1]
+    assert "no receiver passed with its unit" in out[0].bone["log"][-1]
+    assert "not kept (mass" in out[1].bone["log"][-1]
+    # the donor's re-solve leaves its straight segment (a PAM that would have to bend): nothing moves
+    plain = finish
+
+    def unmounted_donor(task):
+        a = plain(task)
+        if a.id == 2:
+            a.mount = {"mounted": False}
+        return a
+
+    monkeypatch.setattr(run_mod, "_finish_choice", unmounted_donor)
+    out = run_mod.reallocate_pass(now, cfg, io.StringIO())
+    assert [r.n_parallel for r in out] == [2, 1, 1, 1, 1]
+    assert "20 mm x1 not kept (leaves its straight segment)" in out[0].bone["log"][-1]
+    monkeypatch.setattr(run_mod, "_finish_choice", plain)
+    # no receiver passes
+    errors[(19, 2)] = (0.16, 0.16)
+    out = run_mod.reallocate_pass(now, cfg, io.StringIO())
+    assert [r.n_parallel for r in out] == [2, 1, 1, 1, 1]
+    errors[(19, 2)] = (0.097, 0.097)
+    # a warm start that held is no donor (its run had the same chance): nothing tried
+    calls.clear()
+    run_mod._STATE["first"][0].warm = True
+    assert run_mod.reallocate_pass(now, cfg, io.StringIO()) == now and calls == []
+    # a receiver at the count cap (the unit budget's largest per actuator) is not tried
+    run_mod._STATE["first"][0].warm = False
+    calls.clear()
+    monkeypatch.setitem(run_mod._STATE, "n_cap", 1)
+    run_mod.reallocate_pass(now, cfg, io.StringIO())
+    assert calls == []
+    # a config that is not a bool is refused with its key
+    with pytest.raises(DataFileError, match="reallocate"):
+        RunConfig(reallocate="yes").validate()
+
+
+@pytest.mark.parametrize("feasible", [True, False])
+def test_a_reallocation_starts_from_the_solved_route_as_it_is(feasible, monkeypatch):
+    """optimize.run._finish_choice with a task ``(k, key, z, t, start)``: the solved route ``z`` with the new
+    count as it is (status "given") where it meets every limit, as a warm start, else solved from it (clipped
+    to its boxes); never the first phase's fit of that size; the bone rounds and the one-segment stage follow,
+    and the attempt carries ``start``."""
+    from pamkin.optimize import problem as problem_mod
+
+    calls = []
+
+    class Sol:
+        def __init__(self, how, z, n):
+            self.how, self.z, self.n_parallel = how, z, n
+            self.success = how == "solve" or feasible
+            self.status = "given" if how == "evaluate" else "Solve_Succeeded"
+            self.objective, self.seconds, self.mount_segment = 0.1, 0.0, None
+
+    class Problem:
+        lbx, ubx = np.full(3, -1.0), np.full(3, 1.0)
+
+        def __init__(self, *a, **k):
+            pass
+
+        def evaluate(self, z, n):
+            calls.append(("evaluate", z.copy(), n))
+            return Sol("evaluate", z, n)
+
+        def solve(self, z, n):
+            calls.append(("solve", z.copy(), n))
+            return Sol("solve", z, n)
+
+    first = _fake_result(19, {(10, 2): 0.02})
+    first.candidates[(10, 2)] = (0.02, Sol("first phase", np.zeros(3), 2), frozenset())
+    first.attempts, first.seconds = [], 0.0
+    pam = first.pam
+    monkeypatch.setattr(problem_mod, "ActuatorProblem", Problem)
+    made = []
+    monkeypatch.setattr(Problem, "__init__", lambda self, *a: made.append(a))
+    from pamkin.optimize import mount as mount_mod
+
+    monkeypatch.setattr(mount_mod, "mounted_segment", lambda prob, z: 1)
+    monkeypatch.setitem(run_mod._STATE, "cfg", RunConfig())
+    monkeypatch.setitem(run_mod._STATE, "data", [types_ns(pam=pam)])
+    monkeypatch.setitem(run_mod._STATE, "first", {0: first})
+    monkeypatch.setattr(run_mod, "_route_box", lambda p, c: ([], []))
+    monkeypatch.setattr(run_mod, "_bracket", lambda *a: None)
+    monkeypatch.setattr(run_mod, "_bone_rounds", lambda prob, sol, p, c: (sol, {}, None))
+    monkeypatch.setattr(run_mod, "_mount", lambda prob, sol, p, c, cuts, blocks: (sol, prob, {}, None))
+    monkeypatch.setattr(run_mod, "_mounted_result", lambda p, d, prob, best, m, direct, attempts, *a: (best, attempts))
+    z = np.array([0.5, 2.0, -0.3])                # the second coordinate outside its box
+    best, attempts = run_mod._finish_choice((0, (10, 2), z, 1, run_mod.REALLOCATE_START, True))
+    assert attempts[-1]["start"] == run_mod.REALLOCATE_START
+    # kept on its straight segment: the problem is made again with that segment's rows
+    assert len(made) == 2 and made[-1][-1] == 1
+    made.clear()
+    run_mod._finish_choice((0, (10, 2), z, 1, run_mod.REALLOCATE_START))
+    assert len(made) == 1
+    calls.clear()
+    best, attempts = run_mod._finish_choice((0, (10, 2), z, 1, run_mod.REALLOCATE_START, True))
+    assert calls[0][0] == "evaluate" and np.array_equal(calls[0][1], z) and calls[0][2] == 2
+    if feasible:
+        assert len(calls) == 1 and best.how == "evaluate" and best.status == "given"
+    else:
+        assert [c[0] for c in calls] == ["evaluate", "solve"] and best.how == "solve"
+        assert np.array_equal(calls[1][1], [0.5, 1.0, -0.3])
+    # the walking check's task (no start given) solves from the route at once; a plain task takes the
+    # first phase's fit of that size
+    calls.clear()
+    best, attempts = run_mod._finish_choice((0, (10, 3), z))
+    assert [c[0] for c in calls] == ["solve"] and attempts[-1]["start"] == "walking check (from the solved route)"
+    calls.clear()
+    best, attempts = run_mod._finish_choice((0, (10, 2), z))
+    assert calls == [] and best.how == "first phase" and attempts[-1]["start"] == "unit budget choice"
+
+
+def types_ns(**kw):
+    """A namespace standing in for an actuator's data (only the fields a test needs)."""
+    import types
+
+    return types.SimpleNamespace(**kw)
