@@ -415,8 +415,9 @@ def _finish_choice(task: tuple) -> ActuatorResult:
     first phase's fit of ``key`` (else ``z``) re-fitted with the block, then the bone rounds and the
     one-segment stage with it. A task ``(k, key, z, t, start[, keep])`` (``t`` the seed's ratio: no block)
     always starts from ``z``, named ``start`` in the attempts: the route as it is where it meets every limit
-    with ``key`` (status "given", as a warm start), else solved from it; with ``keep`` true a PAM on one
-    straight segment at ``z`` is solved with that segment's rows (it stays on it)."""
+    with ``key`` (status "given", as a warm start), else solved from it, else from its points with the
+    lengths sized afresh (:meth:`~optimize.problem.ActuatorProblem.initial_guess`); with ``keep`` true a PAM
+    on one straight segment at ``z`` is solved with that segment's rows (it stays on it)."""
     from .problem import ActuatorProblem  # noqa: PLC0415
 
     k, key, z_start, *more = task
@@ -450,7 +451,6 @@ def _finish_choice(task: tuple) -> ActuatorResult:
     else:
         relax = frozenset(first.relaxed)
         prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax, _bracket(pam, seed, regions, cfg))
-        sol = None
         if len(more) > 1:
             # the solved route as it is, with the new count, where it meets every limit (as a warm start taken
             # as given: the bone rounds go on from a route already clear of bone), else solved from it; with
@@ -464,10 +464,13 @@ def _finish_choice(task: tuple) -> ActuatorResult:
                 if on is not None:
                     prob = ActuatorProblem(data, cfg, key[0], seed, regions, relax, _bracket(pam, seed, regions, cfg),
                                            on)
-            sol = prob.evaluate(np.asarray(z_start, float), key[1])
+            given = prob.evaluate(np.asarray(z_start, float), key[1])
+            sol = given if given.success else prob.solve(np.clip(np.asarray(z_start, float), prob.lbx, prob.ubx),
+                                                          key[1])
+            if not sol.success:       # a second start: the route's points, its lengths sized afresh for them
+                sol = prob.solve(prob.initial_guess(given.points, None, None), key[1])
         else:
             start = "walking check (from the solved route)"
-        if sol is None or not sol.success:
             sol = prob.solve(np.clip(np.asarray(z_start, float), prob.lbx, prob.ubx), key[1])
         if not sol.success:
             return _result(pam, data, prob, sol, first.attempts, t0 - first.seconds, {})

@@ -1509,76 +1509,82 @@ def test_reallocate_pass_moves_a_unit_to_where_it_makes_a_pam_pass(monkeypatch):
         RunConfig(reallocate="yes").validate()
 
 
-@pytest.mark.parametrize("feasible", [True, False])
-def test_a_reallocation_starts_from_the_solved_route_as_it_is(feasible, monkeypatch):
-    """optimize.run._finish_choice with a task ``(k, key, z, t, start)``: the solved route ``z`` with the new
-    count as it is (status "given") where it meets every limit, as a warm start, else solved from it (clipped
-    to its boxes); never the first phase's fit of that size; the bone rounds and the one-segment stage follow,
-    and the attempt carries ``start``."""
+@pytest.mark.parametrize("case", ["as given", "solved", "fresh lengths"])
+def test_a_reallocation_starts_from_the_solved_route_as_it_is(case, monkeypatch):
+    """optimize.run._finish_choice with a task ``(k, key, z, t, start[, keep])``: the solved route ``z`` with
+    the new count as it is (status "given") where it meets every limit, as a warm start, else solved from it
+    (clipped to its boxes), else from its points with the lengths sized afresh; never the first phase's fit of
+    that size; with ``keep`` the problem has the PAM's straight segment's rows; the bone rounds and the
+    one-segment stage follow, and the attempt carries ``start``."""
+    from pamkin.optimize import mount as mount_mod
     from pamkin.optimize import problem as problem_mod
 
-    calls = []
+    calls, made = [], []
+    FRESH = 9.0                                   # the marker of a start with fresh lengths
 
     class Sol:
         def __init__(self, how, z, n):
-            self.how, self.z, self.n_parallel = how, z, n
-            self.success = how == "solve" or feasible
-            self.status = "given" if how == "evaluate" else "Solve_Succeeded"
+            self.how, self.z, self.n_parallel, self.points = how, z, n, [z[:2]]
+            self.success = {"as given": case == "as given", "first phase": True, "fresh lengths": True,
+                            "solved": case != "fresh lengths"}[how]
+            self.status = "given" if how == "as given" else "Solve_Succeeded" if self.success else "Infeasible"
             self.objective, self.seconds, self.mount_segment = 0.1, 0.0, None
 
     class Problem:
         lbx, ubx = np.full(3, -1.0), np.full(3, 1.0)
 
-        def __init__(self, *a, **k):
-            pass
+        def __init__(self, *a):
+            made.append(a)
+
+        def initial_guess(self, points, rest, tendon):
+            assert rest is None and tendon is None
+            return np.array([*points[0], FRESH])
 
         def evaluate(self, z, n):
-            calls.append(("evaluate", z.copy(), n))
-            return Sol("evaluate", z, n)
+            calls.append(("as given", z.copy(), n))
+            return Sol("as given", z, n)
 
         def solve(self, z, n):
-            calls.append(("solve", z.copy(), n))
-            return Sol("solve", z, n)
+            how = "fresh lengths" if z[-1] == FRESH else "solved"
+            calls.append((how, z.copy(), n))
+            return Sol(how, z, n)
 
-    first = _fake_result(19, {(10, 2): 0.02})
+    first = _fake_result(19, {})
     first.candidates[(10, 2)] = (0.02, Sol("first phase", np.zeros(3), 2), frozenset())
     first.attempts, first.seconds = [], 0.0
-    pam = first.pam
     monkeypatch.setattr(problem_mod, "ActuatorProblem", Problem)
-    made = []
-    monkeypatch.setattr(Problem, "__init__", lambda self, *a: made.append(a))
-    from pamkin.optimize import mount as mount_mod
-
     monkeypatch.setattr(mount_mod, "mounted_segment", lambda prob, z: 1)
     monkeypatch.setitem(run_mod._STATE, "cfg", RunConfig())
-    monkeypatch.setitem(run_mod._STATE, "data", [types_ns(pam=pam)])
+    monkeypatch.setitem(run_mod._STATE, "data", [types_ns(pam=first.pam)])
     monkeypatch.setitem(run_mod._STATE, "first", {0: first})
     monkeypatch.setattr(run_mod, "_route_box", lambda p, c: ([], []))
     monkeypatch.setattr(run_mod, "_bracket", lambda *a: None)
     monkeypatch.setattr(run_mod, "_bone_rounds", lambda prob, sol, p, c: (sol, {}, None))
     monkeypatch.setattr(run_mod, "_mount", lambda prob, sol, p, c, cuts, blocks: (sol, prob, {}, None))
     monkeypatch.setattr(run_mod, "_mounted_result", lambda p, d, prob, best, m, direct, attempts, *a: (best, attempts))
+    monkeypatch.setattr(run_mod, "_result", lambda p, d, prob, sol, attempts, *a: (sol, attempts))
     z = np.array([0.5, 2.0, -0.3])                # the second coordinate outside its box
     best, attempts = run_mod._finish_choice((0, (10, 2), z, 1, run_mod.REALLOCATE_START, True))
     assert attempts[-1]["start"] == run_mod.REALLOCATE_START
-    # kept on its straight segment: the problem is made again with that segment's rows
-    assert len(made) == 2 and made[-1][-1] == 1
+    assert len(made) == 2 and made[-1][-1] == 1    # made again with the straight segment's rows
+    assert calls[0][0] == "as given" and np.array_equal(calls[0][1], z) and calls[0][2] == 2
+    expected = {"as given": ["as given"], "solved": ["as given", "solved"],
+                "fresh lengths": ["as given", "solved", "fresh lengths"]}[case]
+    assert [c[0] for c in calls] == expected and best.how == case and best.success
+    if case != "as given":
+        assert np.array_equal(calls[1][1], [0.5, 1.0, -0.3])
+    if case == "fresh lengths":
+        assert np.array_equal(calls[2][1], [0.5, 2.0, FRESH])
+    # without keep: no segment rows; the walking check's task (no start given) solves from the route at once;
+    # a plain task takes the first phase's fit of that size
     made.clear()
     run_mod._finish_choice((0, (10, 2), z, 1, run_mod.REALLOCATE_START))
     assert len(made) == 1
     calls.clear()
-    best, attempts = run_mod._finish_choice((0, (10, 2), z, 1, run_mod.REALLOCATE_START, True))
-    assert calls[0][0] == "evaluate" and np.array_equal(calls[0][1], z) and calls[0][2] == 2
-    if feasible:
-        assert len(calls) == 1 and best.how == "evaluate" and best.status == "given"
-    else:
-        assert [c[0] for c in calls] == ["evaluate", "solve"] and best.how == "solve"
-        assert np.array_equal(calls[1][1], [0.5, 1.0, -0.3])
-    # the walking check's task (no start given) solves from the route at once; a plain task takes the
-    # first phase's fit of that size
-    calls.clear()
     best, attempts = run_mod._finish_choice((0, (10, 3), z))
-    assert [c[0] for c in calls] == ["solve"] and attempts[-1]["start"] == "walking check (from the solved route)"
+    assert [c[0] for c in calls] == ["solved"] and best.success == (case != "fresh lengths")
+    if best.success:
+        assert attempts[-1]["start"] == "walking check (from the solved route)"
     calls.clear()
     best, attempts = run_mod._finish_choice((0, (10, 2), z))
     assert calls == [] and best.how == "first phase" and attempts[-1]["start"] == "unit budget choice"
@@ -1589,3 +1595,40 @@ def types_ns(**kw):
     import types
 
     return types.SimpleNamespace(**kw)
+
+
+def test_the_bone_rounds_solver_leaves_the_capsule_rows_out():
+    """ActuatorProblem.cut_solver / solve_with_rows: the capsule rows, which the mesh rows replace in the
+    bone-mesh rounds, are not rows of that NLP (IPOPT would carry them, with infinite bounds, in every
+    iteration's linear system); its optimum is the one of the same NLP with them kept, free."""
+    from pamkin.optimize.problem import CUT_SLOTS
+
+    human = pamkin.gait2392()
+    design = load_design("v2_seed")
+    pam = design.pam(16)
+    rom = load_rom(design.rom, "r")
+    cfg = RunConfig(**FAST_FIT)
+    data = actuator_data(pam, human, rom, cfg, design.fitting_length_m)
+    seed = [np.array(p.location) for p in pam.points]
+    regions = [np.array(cfg.region(16, p.name)) for p in pam.points]
+    prob = ActuatorProblem(data, cfg, 20, seed, regions)
+    cap = prob._capsule_rows()
+    assert cap.sum() > 100
+    z0 = prob.initial_guess(seed, pam.resting_length_m, pam.tendon_length_m)
+    npt = len(prob.free)
+    k = CUT_SLOTS
+    assert prob.cut_solver(k).size_out("g")[0] == int((~cap).sum()) + k + npt
+    got, slack = prob.solve_with_rows(z0, 1, np.zeros((0, len(z0))), np.zeros(0), prob.lbx, prob.ubx)
+    assert got.success and slack == 0.0
+    # the same NLP with the capsule rows kept in it, free (infinite bounds): the same optimum
+    kept = ActuatorProblem(data, cfg, 20, seed, regions)
+    kept.lbg, kept.ubg = np.where(cap, -np.inf, kept.lbg), np.where(cap, np.inf, kept.ubg)
+    kept._capsule_mask = np.zeros_like(cap)
+    assert kept.cut_solver(k).size_out("g")[0] == len(cap) + k + npt
+    ref, _ = kept.solve_with_rows(z0, 1, np.zeros((0, len(z0))), np.zeros(0), kept.lbx, kept.ubx)
+    assert ref.success
+    # (a non-convex fit, and IPOPT stops at an acceptable level: from the seed the two may end at different
+    # points) from either's result the other finds a feasible one no worse: the same problem
+    for a, p in ((got, kept), (ref, prob)):
+        again, _ = p.solve_with_rows(a.z, 1, np.zeros((0, len(z0))), np.zeros(0), p.lbx, p.ubx)
+        assert again.success and again.objective <= a.objective + 1e-9
