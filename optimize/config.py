@@ -111,7 +111,7 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
     reallocate = true            # (v2, with bone_mesh and max_units) after the re-sizing: a PAM unit of an actuator
                                  #      with several that fails both audit fit limits on the validation poses
                                  #      (its units buy no pass) moves to the failing actuator nearest to passing
-                                 #      (at most 2 tried, one more unit each: bone rounds and one-segment stage),
+                                 #      (at most 2 tried per unit, one more unit each: bone rounds, one-segment stage),
                                  #      where that one then passes both within 0.02 and the robot's mass stays
                                  #      within max_mass_kg; the unit budget holds (optimize.run.reallocate_pass)
     resize_on = "objective"      # (v2) what the re-sizing compares: "objective" (score: fit objective + mass

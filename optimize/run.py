@@ -913,19 +913,13 @@ def roller_pass(results: list[ActuatorResult], cfg: RunConfig, stream=None) -> l
     without rollers is not tried again (:func:`warm_roller_outcomes`): the stage's cost is then that of the
     actuators it gave rollers."""
     stream = stream or sys.stderr
-    from pamkin.audit import load_limits  # noqa: PLC0415
-
-    from .validation import validation_error  # noqa: PLC0415
-
-    thr = load_limits()["thresholds"]
-    q, T = _validation_set()
+    lim_n, lim_w = _fit_limits()
     todo = []
     for k, r in enumerate(results):
         if r.z is None or not r.success:
             continue
-        nr, w = validation_error(r.pam, _STATE["human"], q, T, list(_STATE["data"][k].crossed or []),
-                                 _STATE["seed_design"])
-        if nr > thr["nrmse_good"] or w > thr["worst_coordinate_error_good"]:
+        nr, w = _validation_errors(r.pam, k)
+        if nr > lim_n or w > lim_w:
             todo.append(k)
     warm = warm_roller_outcomes(Path(cfg.warm_start)) if cfg.warm_start else {}
     again = [k for k in todo if results[k].id in _STATE.get("warm_ids", ()) and
@@ -1234,17 +1228,11 @@ def reallocate_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.st
     :data:`PASS_MARGIN`, the donor's re-solve succeeds, both are clear of bone and on one straight segment
     where they were, and the robot's estimated mass stays within ``cfg.max_mass_kg``: the unit count does
     not change. Only direct (1:1) results take part. Each moved actuator's bone log says so."""
-    from pamkin.audit import load_limits  # noqa: PLC0415
-
-    from .validation import validation_error  # noqa: PLC0415
-
-    thr = load_limits()["thresholds"]
-    lim_n, lim_w = thr["nrmse_good"], thr["worst_coordinate_error_good"]
-    q, T = _validation_set()
+    lim_n, lim_w = _fit_limits()
     seed = _STATE["seed_design"]
 
     def errors(r: ActuatorResult, k: int) -> tuple[float, float]:
-        return validation_error(r.pam, _STATE["human"], q, T, list(_STATE["data"][k].crossed or []), seed)
+        return _validation_errors(r.pam, k)
 
     def direct(r: ActuatorResult, k: int) -> bool:
         return (r.success and r.z is not None and r.objective is not None
@@ -1279,6 +1267,7 @@ def reallocate_pass(results: list[ActuatorResult], cfg: RunConfig, stream=sys.st
     done = {(a.id, a.n_parallel): a for a in _map(_finish_choice, tasks, cfg, stream)}
     out = list(results)
     lines: dict[int, list[str]] = {}
+
     def failed(a: ActuatorResult | None, k: int) -> str:
         """Why the re-solve ``a`` of actuator ``k`` cannot be kept ('' where it can)."""
         if a is None:
@@ -1378,19 +1367,33 @@ def _validation_set() -> tuple[np.ndarray, np.ndarray]:
     return _STATE["validation"]
 
 
+def _validation_errors(pam: Pam, k: int) -> tuple[float, float]:
+    """Primary NRMSE and worst error about a crossed coordinate (:mod:`optimize.validation`) of ``pam`` as
+    actuator ``k``'s PAM, on the run's validation poses (the seed design carries the run's pressure, force model
+    and fitting length)."""
+    from .validation import validation_error  # noqa: PLC0415
+
+    q, T = _validation_set()
+    return validation_error(pam, _STATE["human"], q, T, list(_STATE["data"][k].crossed or []),
+                            _STATE["seed_design"])
+
+
+def _fit_limits() -> tuple[float, float]:
+    """The audit's fit limits: (primary NRMSE, worst coordinate error) a PAM passes at or below."""
+    from pamkin.audit import load_limits  # noqa: PLC0415
+
+    thr = load_limits()["thresholds"]
+    return thr["nrmse_good"], thr["worst_coordinate_error_good"]
+
+
 def _validation():
     """``error(result, k)``: the validation error (:mod:`optimize.validation`: primary NRMSE + worst error about
     a crossed coordinate, on poses like the audit's from the optimiser's own stream) of actuator ``k``'s
     result; the poses and human torques are made once per run."""
-    from .validation import validation_error  # noqa: PLC0415
-
-    q, T = _validation_set()
+    _validation_set()
 
     def error(r: ActuatorResult, k: int) -> float:
-        data = _STATE["data"][k]
-        # the seed design carries the run's pressure, force model and fitting length
-        return float(sum(validation_error(r.pam, _STATE["human"], q, T, list(data.crossed or []),
-                                          _STATE["seed_design"])))
+        return float(sum(_validation_errors(r.pam, k)))
 
     return error
 
