@@ -989,6 +989,57 @@ def fit_cost_lines(results: list[ActuatorResult]) -> list[str]:
     return out
 
 
+def bone_limit_lines(results: list[ActuatorResult]) -> list[str]:
+    """One line per finished actuator that fails an audit fit limit on the validation poses (primary NRMSE
+    or worst error about a crossed coordinate, :mod:`optimize.validation`): its errors on and clear of bone,
+    beside those of its first-phase fit of the size the unit budget chose (route points anywhere in their
+    boxes, no bone meshes: the route the bone rounds started from), and where the bone rounds started (its points over 20 mm from bone, its
+    deepest segment into bone). Where that fit passes both limits the bone limits cost the pass — the PAM is
+    out of reach of the audit's fit limits within them, by name with its numbers; where it fails too, the
+    route's shape does. Left out: actuators without a bone stage, a failed first phase or a warm start that held
+    (its first phase is the warm route, already on its bones)."""
+    first = _STATE.get("first") or {}
+    if not first or _STATE.get("validation") is None:
+        return []
+    lim_n, lim_w = _fit_limits()
+    out = []
+    for k, r in enumerate(results):
+        f = first.get(k)
+        if not (r.success and r.bone) or f is None or f.id != r.id or f.warm or not f.success:
+            continue
+        n1, w1 = _validation_errors(r.pam, k)
+        if n1 <= lim_n and w1 <= lim_w:
+            continue
+        ref = _chosen_first_pam(k)
+        n0, w0 = _validation_errors(ref, k)
+        before = r.bone.get("before", {})
+        far = [f"{name} {v:.0f} mm" for name, v in before.get("point_distance_mm", {}).items() if v > 20]
+        depth = float(before.get("max_segment_penetration_mm", 0.0))
+        start = ", ".join(x for x in (("points " + ", ".join(far) + " from bone") if far else "",
+                                      f"a segment {depth:.1f} mm into bone" if depth > 2 else "") if x)
+        verdict = ("out of reach within the bone limits: without them it passes both"
+                   if n0 <= lim_n and w0 <= lim_w else
+                   "fails without the bone meshes too: the route's shape and the PAM's force-length curve")
+        out.append(f"actuator {r.id} {r.name}: validation NRMSE / worst {n1:.3f} / {w1:.3f} ({_size(r.pam)}, on "
+                   f"and clear of bone; audit limits {lim_n:g} / {lim_w:g}); its fit without the bone "
+                   f"meshes ({_size(ref)}) {n0:.3f} / {w0:.3f}: {verdict}"
+                   + (f" (the bone rounds started from {start})" if start else ""))
+    return out
+
+
+def _chosen_first_pam(k: int) -> Pam:
+    """Actuator ``k``'s first-phase fit (no bone meshes) of the diameter and count the unit budget chose
+    (``_STATE["choice"]``), as a PAM; its own best fit where that is the choice or was not kept."""
+    f: ActuatorResult = _STATE["first"][k]
+    key = (_STATE.get("choice") or {}).get(k)
+    if not key or key == (f.pam.diameter_mm, f.n_parallel) or key not in f.candidates \
+            or f.candidates[key][1] is None:
+        return f.pam
+    new = solution_pam(dataclasses.replace(_STATE["data"][k].pam, transmission=f.pam.transmission),
+                       f.candidates[key][1])
+    return dataclasses.replace(new, tendon_length_m=max(new.tendon_length_m, 0.0))
+
+
 def first_locations(r: ActuatorResult, data) -> list[np.ndarray]:
     """Decision-variable locations (fixed points) / offsets (moving points) of a solved actuator."""
     return [r.z[3 * i:3 * i + 3] for i in range(len(data.pam.points))]
@@ -1776,6 +1827,9 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, o
     costly = fit_cost_lines(results)
     for line in costly:
         print(f"bone-mesh: {line}", file=stream, flush=True)
+    reach = bone_limit_lines(results)
+    for line in reach:
+        print(f"fit limits: {line}", file=stream, flush=True)
     for line in mount_lines(results, cfg):
         print(line, file=stream, flush=True)
     print("solving done; checking every actuator on dense grids (numpy pipeline) ...", file=stream, flush=True)
@@ -1789,6 +1843,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, o
         summary["grids"]["min_bone_clearance_m"] += (" (the first phase's bone model; with the bone meshes the "
                                                      "actuators' bone_mesh entries give the clearance)")
         summary["bone_mesh_fit_cost"] = costly
+        summary["fit_limits_and_bone"] = reach
     if any(r.mount for r in results):
         summary["one_segment"] = {str(r.id): r.mount for r in results if r.mount}
     if ends:
@@ -1801,6 +1856,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: bool = False, stream=sys.stderr, o
     before_after_plot(seed, new, out_dir / "before_after.png",
                       seed_label=f"warm start ({Path(cfg.warm_start).name})" if warm_ids else None)
     log.extend(ends)
+    log.extend(f"fit limits: {line}" for line in reach)
     log.append(f"total {summary['total_seconds']} s (solves {solve_seconds:.1f} s)")
     atomic_write(out_dir / "log.txt", "\n".join(log) + "\n")
     try:

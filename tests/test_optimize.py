@@ -447,6 +447,22 @@ def test_example_configs_are_the_default_and_the_fast_fit():
         assert diff == [], (path.name, diff)
 
 
+def test_reference_configs_switch_off_exactly_the_buildability_limits():
+    """examples/reference_unbuildable.toml is the default run without bone meshes, bone capsules, the
+    sensitivity bound and the one-segment stage (rated force, contraction and unit budget kept);
+    examples/reference_bone_only.toml is the default run without the one-segment stage."""
+    root = Path(__file__).resolve().parents[1] / "examples"
+    default = RunConfig()
+    for name, expected in (("reference_unbuildable.toml", {"bone_mesh": False, "bone_clearance": False,
+                                                             "sensitivity_pct": 0.0, "mount": False}),
+                           ("reference_bone_only.toml", {"mount": False})):
+        cfg = load_config(root / name)
+        diff = {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg) if f.name != "source"
+                and getattr(cfg, f.name) != getattr(default, f.name)}
+        assert diff == expected, name
+        assert cfg.rated_force and cfg.max_units == 60
+
+
 def test_fit_cost_of_the_bone_rounds_is_named():
     """The run names actuators whose fit the bone-mesh rounds made > 3x worse, with the far points."""
     r1 = _fake_result(24, {})
@@ -1632,3 +1648,62 @@ def test_the_bone_rounds_solver_leaves_the_capsule_rows_out():
     for a, p in ((got, kept), (ref, prob)):
         again, _ = p.solve_with_rows(a.z, 1, np.zeros((0, len(z0))), np.zeros(0), p.lbx, p.ubx)
         assert again.success and again.objective <= a.objective + 1e-9
+
+
+def test_the_run_names_pams_out_of_reach_within_the_bone_limits(monkeypatch):
+    """optimize.run.bone_limit_lines: a finished actuator failing an audit fit limit on the validation poses is
+    named with its errors and those of its fit without the bone meshes — "out of reach within the
+    bone limits" where that fit passes both (with where the bone rounds started: points over 20 mm from
+    bone, a segment into bone), "fails without the bone meshes too" where it fails; a passing actuator, a warm
+    start that held and an actuator without a bone stage are left out, and nothing is said without the
+    validation poses."""
+    errors = {}
+
+    def result(aid: int, before: dict | None, err: tuple, warm: bool = False):
+        r = _fake_result(aid, {})
+        r.pam = dataclasses.replace(r.pam, diameter_mm=20, n_parallel=1, transmission=1)
+        r.bone, r.warm = ({"before": before, "clear": True} if before is not None else {}), warm
+        errors[id(r.pam)] = err
+        return r
+
+    after = [result(24, {"point_distance_mm": {"p1": 4.0, "p2": 70.2, "p4": 93.0},
+                         "max_segment_penetration_mm": 15.5}, (0.586, 0.586)),
+             result(7, {"point_distance_mm": {"p1": 9.0}, "max_segment_penetration_mm": 0.4}, (0.182, 0.631)),
+             result(12, {"point_distance_mm": {}}, (0.05, 0.05)),
+             result(3, {"point_distance_mm": {}}, (0.11, 0.29)),
+             result(4, None, (0.37, 0.77))]
+    first = [result(24, None, (0.9, 0.9)), result(7, None, (0.067, 0.319)), result(12, None, (0.04, 0.04)),
+             result(3, None, (0.09, 0.09), warm=True), result(4, None, (0.06, 0.10))]
+    monkeypatch.setattr(run_mod, "_validation_errors", lambda pam, k: errors[id(pam)])
+    monkeypatch.setitem(run_mod._STATE, "first", dict(enumerate(first)))
+    monkeypatch.setitem(run_mod._STATE, "validation", (np.zeros((1, 1)), np.zeros((1, 1, 1))))
+    # actuator 24: the unit budget chose another size than its own best (40 mm x1): that fit is the reference
+    import types
+
+    seed = _fake_result(24, {}).pam
+    sol = types.SimpleNamespace(points=[np.array(pt.location) for pt in seed.points], diameter_mm=40, n_parallel=1,
+                                rest_length=0.3, tendon_length=-1e-9)
+    first[0].candidates = {(40, 1): (0.1, sol, frozenset())}
+    monkeypatch.setitem(run_mod._STATE, "choice", {0: (40, 1)})
+    monkeypatch.setitem(run_mod._STATE, "data", {0: types.SimpleNamespace(pam=seed)})
+    seen = []
+
+    def fake(pam, k):
+        if id(pam) in errors:
+            return errors[id(pam)]
+        seen.append(pam)
+        return (0.068, 0.068)
+
+    monkeypatch.setattr(run_mod, "_validation_errors", fake)
+    lines = run_mod.bone_limit_lines(after)
+    assert [(p.diameter_mm, p.n_parallel, p.resting_length_m, p.tendon_length_m) for p in seen] == [(40, 1, 0.3, 0.0)]
+    assert lines == [
+        "actuator 24 Gluteal group: validation NRMSE / worst 0.586 / 0.586 (20 mm x1, on and clear of bone; "
+        "audit limits 0.15 / 0.25); its fit without the bone meshes (40 mm x1) 0.068 / 0.068: out of "
+        "reach within the bone limits: without them it passes both (the bone rounds started from points p2 70 mm, "
+        "p4 93 mm from bone, a segment 15.5 mm into bone)",
+        "actuator 7 Tensor Fasciae Latae: validation NRMSE / worst 0.182 / 0.631 (20 mm x1, on and clear of "
+        "bone; audit limits 0.15 / 0.25); its fit without the bone meshes (20 mm x1) 0.067 / 0.319: "
+        "fails without the bone meshes too: the route's shape and the PAM's force-length curve"]
+    monkeypatch.setitem(run_mod._STATE, "validation", None)
+    assert run_mod.bone_limit_lines(after) == []
