@@ -981,20 +981,25 @@ def fit_cost_lines(results: list[ActuatorResult]) -> list[str]:
         j0, j1 = b.get("objective_before"), b.get("objective_after")
         if j0 is None or j1 is None or j1 <= 0.01 or j1 <= FIT_COST_FACTOR * max(j0, 1e-12):
             continue
-        far = {k: v for k, v in b.get("before", {}).get("point_distance_mm", {}).items() if v > 20}
-        why = ("; its fitted route had points " + ", ".join(f"{k} {v:.0f} mm" for k, v in far.items())
-               + " from bone") if far else ""
+        far = _far_points(b.get("before", {}))
+        why = ("; its fitted route had points " + ", ".join(far) + " from bone") if far else ""
         out.append(f"actuator {r.id} {r.name}: keeping the route on and clear of bone raised the fit objective "
                    f"{j0:.3g} -> {j1:.3g} (x{j1 / max(j0, 1e-12):.0f}){why}")
     return out
+
+
+def _far_points(measure: dict) -> list[str]:
+    """``["p2 70 mm", ...]``: the points of a bone measure's summary (``point_distance_mm``) over 20 mm
+    (the audit's bracket limit) from their bone."""
+    return [f"{name} {v:.0f} mm" for name, v in measure.get("point_distance_mm", {}).items() if v > 20]
 
 
 def bone_limit_lines(results: list[ActuatorResult]) -> list[str]:
     """One line per finished actuator that fails an audit fit limit on the validation poses (primary NRMSE
     or worst error about a crossed coordinate, :mod:`optimize.validation`): its errors on and clear of bone,
     beside those of its first-phase fit of the size the unit budget chose (route points anywhere in their
-    boxes, no bone meshes: the route the bone rounds started from), and where the bone rounds started (its points over 20 mm from bone, its
-    deepest segment into bone). Where that fit passes both limits the bone limits cost the pass — the PAM is
+    boxes, no bone meshes), and where this result's bone rounds started (its points over 20 mm from bone,
+    its deepest segment into bone). Where that fit passes both limits the bone limits cost the pass — the PAM is
     out of reach of the audit's fit limits within them, by name with its numbers; where it fails too, the
     route's shape does. Left out: actuators without a bone stage, a failed first phase or a warm start that held
     (its first phase is the warm route, already on its bones)."""
@@ -1013,7 +1018,7 @@ def bone_limit_lines(results: list[ActuatorResult]) -> list[str]:
         ref = _chosen_first_pam(k)
         n0, w0 = _validation_errors(ref, k)
         before = r.bone.get("before", {})
-        far = [f"{name} {v:.0f} mm" for name, v in before.get("point_distance_mm", {}).items() if v > 20]
+        far = _far_points(before)
         depth = float(before.get("max_segment_penetration_mm", 0.0))
         start = ", ".join(x for x in (("points " + ", ".join(far) + " from bone") if far else "",
                                       f"a segment {depth:.1f} mm into bone" if depth > 2 else "") if x)
