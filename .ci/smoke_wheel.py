@@ -83,7 +83,7 @@ def main() -> None:
         (work / "quick.toml").write_text(QUICK_CONFIG)
         # the installed package, not the checkout; no top-level 'optimize'; the data inside the package
         probe = run([sys.executable, "-c", (
-            "import importlib.util, pamkin, pamkin.optimize.run, pamkin._resources as r;"
+            "import importlib.util, pamkin, pamkin.optimize.pipeline, pamkin.optimize.stages.walking, pamkin._resources as r;"
             "assert importlib.util.find_spec('optimize') is None, 'a top-level optimize package is installed';"
             "m = pamkin.gait2392(); assert len(m.muscles) == 92;"
             "print(pamkin.__file__); print(r.ROBOT_DIR); print(r.URDF_DIR);"

@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 import time
 
-from pamkin.audit import AuditOptions, audit_design
+from pamkin.audit.measure import AuditOptions, audit_design
 
 
 def run(design: str, options: AuditOptions, label: str, goal: float) -> None:

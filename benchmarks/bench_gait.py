@@ -42,9 +42,9 @@ def main() -> int:
 
     import numpy as np
 
-    from pamkin.gait import DEFAULT_ID, DEFAULT_IK, GaitTrial, evaluate_plan, load_trial, write_outputs
-    from pamkin.robot import design_robot
-    from pamkin.storage import read_storage
+    from pamkin.gait.plan import DEFAULT_ID, DEFAULT_IK, GaitTrial, evaluate_plan, load_trial, write_outputs
+    from pamkin.robot.biped import design_robot
+    from pamkin.opensim.storage import read_storage
 
     t_imp = time.perf_counter() - T_START
     t0 = time.perf_counter()

@@ -1,6 +1,6 @@
 """Benchmark: the default attachment-point optimisation (every actuator of the seed design) on the built-in data.
 
-Goals (issue 12): the default run (the optimiser-v2 defaults since stop 16) in under 10 minutes on this 2-core
+Goals (issue 12): the default run (the optimiser-v2 defaults since 0.1.0-dev) in under 10 minutes on this 2-core
 machine (issue 6 asked < 5 minutes of the earlier fast fit, which ``--config examples/optimize_fast.toml``
 still runs), and a re-run warm-started from a run in under 2 minutes. Prints wall time, the solve time, the
 before/after summary (from the run's summary.json) and the audit figures of the result (``pamkin audit``,
@@ -63,7 +63,7 @@ def main() -> int:
         warm_rerun(Path(args.warm_start), out, args.config)
         return 0
     from pamkin.optimize.config import load_config
-    from pamkin.optimize.run import run
+    from pamkin.optimize.pipeline import run
 
     cfg = load_config(args.config)
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="pamkin-bench-"))
@@ -76,7 +76,7 @@ def main() -> int:
     print(f"median NRMSE {s['median_nrmse_before']:.3f} -> {s['median_nrmse_after']:.3f}; "
           f"{s['n_within_0.20_after']}/{len(rows)} within 0.20; {s['n_halved']} halved; "
           f"all buildable {s['all_buildable']}; all clear of bone {s['all_clear_bone']}; run folder {out}")
-    from pamkin.audit import AuditOptions, audit_design
+    from pamkin.audit.measure import AuditOptions, audit_design
 
     t = time.perf_counter()
     res = audit_design(out, options=AuditOptions.quick() if args.quick_audit else AuditOptions())

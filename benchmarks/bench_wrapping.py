@@ -44,7 +44,7 @@ def main() -> int:
     args = ap.parse_args()
 
     import pamkin
-    from pamkin.osim import SkippedComponentsWarning
+    from pamkin.opensim.model_file import SkippedComponentsWarning
 
     print(f"pamkin on {args.n} random configurations (best of 3); OpenSim 4.6 from Python in a child process")
     print(f"{'model':14s} {'quantity':24s} {'pamkin /s':>11s} {'OpenSim /s':>11s} {'ratio':>8s}   goal")

@@ -6,9 +6,9 @@ Run: python examples/library_use.py
 import numpy as np
 
 import pamkin
-from pamkin.compare import compare_pam
-from pamkin.robot import design_robot
-from pamkin.rom import load_rom
+from pamkin.audit.compare import compare_pam
+from pamkin.robot.biped import design_robot
+from pamkin.human.rom import load_rom
 
 human = pamkin.gait2392()                              # built-in Gait2392 (Delp et al., CC BY 3.0)
 rom = load_rom("robot_thesis", "r")

@@ -1,6 +1,6 @@
 """Bone-mesh clearance of one actuator's route as linear constraints, re-linearised each round.
 
-The bone meshes (:class:`pamkin.bones.BoneSet`, exact libigl distances) are not smooth enough for
+The bone meshes (:class:`pamkin.human.bones.BoneSet`, exact libigl distances) are not smooth enough for
 IPOPT as functions, so the optimiser uses them the way sequential convex collision methods do
 (e.g. TrajOpt): at the current route, every segment sample that comes near a bone at some
 *bone-check pose* gives one linear constraint — the sample stays on the outer side of the bone's
@@ -29,11 +29,20 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
+from pamkin.optimize.pam_clearance import segment_point_distance
+from pamkin.optimize.samples import (
+    boundary_poses,
+    corner_poses,
+    gait_training_poses,
+    poses_from_unit,
+    with_dependencies,
+)
 
-from pamkin.detour import piece_clearance, same_body_segments
+from pamkin.audit.measure import audit_coordinates
 from pamkin.errors import RangeWarning
-from pamkin.paths import PathSet
-from pamkin.rollers import roller_pieces
+from pamkin.human.paths import PathSet
+from pamkin.robot.detour import piece_clearance, same_body_segments
+from pamkin.robot.rollers import roller_pieces
 
 #: Centre line of every segment at least this far outside every bone at the bone-check poses [m]
 #: (the audit's limit is 2 mm *into* bone; the difference covers poses between the samples).
@@ -129,7 +138,7 @@ class Measure:
 
 
 def right_only_query(query, state, P: np.ndarray, n_right_only: int, **kw) -> tuple:
-    """``query(state, P, **kw)`` (a :class:`pamkin.bones.BoneSet` method: ``nearest``, ``signed_distance``) with
+    """``query(state, P, **kw)`` (a :class:`pamkin.human.bones.BoneSet` method: ``nearest``, ``signed_distance``) with
     the first ``n_right_only`` poses against the right side's bones only (they move the right leg only, as the
     audit's random poses: the left leg's bones, standing at their default, are not tested), the rest against
     every bone; the results concatenated along the poses."""
@@ -153,7 +162,7 @@ class BoneCuts:
     Args:
         pam: The seed PAM (route points; moving points are described by offsets, seed 0).
         model: The human model (kinematics of the poses; same skeleton as the robot).
-        bones: The skeleton's :class:`pamkin.bones.BoneSet`.
+        bones: The skeleton's :class:`pamkin.human.bones.BoneSet`.
         q: (S, n_coordinates) bone-check poses.
     """
 
@@ -181,11 +190,11 @@ class BoneCuts:
         self.mount = 0
         #: segments not sampled
         self.skip: set[int] = set()
-        #: segment index -> its roller (pamkin.rollers.Roller): the straight pieces around it are sampled
+        #: segment index -> its roller (pamkin.robot.rollers.Roller): the straight pieces around it are sampled
         self.rollers: dict = {}
-        #: same-body segments (both ends fixed in one body, :func:`pamkin.detour.same_body_segments`) shorter
+        #: same-body segments (both ends fixed in one body, :func:`pamkin.robot.detour.same_body_segments`) shorter
         #: than this [m] do not see their own bone: the run carries them round it afterwards
-        #: (:func:`pamkin.detour.detour_pam`, a constant length); other bones still count. 0: off
+        #: (:func:`pamkin.robot.detour.detour_pam`, a constant length); other bones still count. 0: off
         self.detour_below = 0.0
         #: segments that always see their own bone (the one the PAM body is being put on)
         self.keep: set[int] = set()
@@ -208,7 +217,7 @@ class BoneCuts:
         ``wa·X[a] + wb·X[a+1] + const`` (kept in ``_wa``, ``_wb`` (K,) and ``_const`` (S, K, 3)): on a straight
         segment (1 − t, t, 0); on a segment with a roller (``rollers``) the samples lie on its straight pieces
         before and after the roller, X[a] → T1 (1 − t, 0, t·T1) and T2 → X[a+1] (0, t, (1 − t)·T2), the
-        tangent points (fixed in the roller's bone) from :func:`pamkin.rollers.roller_pieces`."""
+        tangent points (fixed in the roller's bone) from :func:`pamkin.robot.rollers.roller_pieces`."""
         segs, ts, was, wbs, consts, parts = [], [], [], [], [], []
         for a in range(self.n_points - 1):
             if a in self.skip:
@@ -316,7 +325,6 @@ class BoneCuts:
         nz = 3 * self.n_points + 2
         if not self.obstacles:
             return None, (np.zeros((0, nz)), np.zeros(0))
-        from .pam_clearance import segment_point_distance
 
         own = np.where(seg == self.mount, self.radius, TENDON_RADIUS)          # (K,)
         clear: dict = {}
@@ -445,10 +453,7 @@ def bone_check_poses(model, rom, pam, seed: int, n_random: int = N_RANDOM,
     Returns:
         ``(q, n_right_only)``: the poses and how many of them (the first) move the right leg only.
     """
-    from pamkin.audit import audit_coordinates  # noqa: PLC0415
 
-    from .samples import (boundary_poses, corner_poses, gait_training_poses, poses_from_unit,  # noqa: PLC0415
-                          with_dependencies)
 
     rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(BONE_STREAM, int(pam.id))))
     coords = [c for c in audit_coordinates(rom) if c in model.coordinates]
@@ -473,9 +478,7 @@ def point_contact_poses(model, bones, rom, pam, seed: int, n: int = N_POINT_CHEC
     leg and lumbar joints; stream :data:`BONE_STREAM`, apart from :func:`bone_check_poses`' draws), the
     ``keep`` closest, (k, n_coordinates) (k = 0: none). A point's own bone is the bracket rows' business.
     """
-    from pamkin.audit import audit_coordinates  # noqa: PLC0415
 
-    from .samples import poses_from_unit  # noqa: PLC0415
 
     rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(BONE_STREAM, int(pam.id), 1)))
     coords = [c for c in audit_coordinates(rom) if c in model.coordinates]

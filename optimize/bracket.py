@@ -8,7 +8,7 @@ whole 50 mm of their box, and the rounds then pull them back, often far from any
 Here the band is a constraint of the fit itself: the signed distance of a point to its own bone is a
 function of the point's body-frame location only (the point and the bone move together), so one smooth
 function per point serves every pose. It is a tensor-product cubic B-spline whose coefficients are the
-exact signed distances (:meth:`pamkin.bones.BoneSet.body_signed_distance`, libigl) on a regular grid
+exact signed distances (:meth:`pamkin.human.bones.BoneSet.body_signed_distance`, libigl) on a regular grid
 over the point's box (quasi-interpolation: exact for linear fields, not passing through curved ones;
 measured around a 10 mm sphere, 2–20 mm out: within 0.18 mm of the exact distance). The rows are approximate by design: the bone
 rounds replace them with the exact mesh rows (as they replace the capsules) and measure the result
@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
-
-from .bone_cuts import POINT_MAX, POINT_MIN
+from pamkin.optimize.bone_cuts import POINT_MAX, POINT_MIN
+from pamkin.optimize.samples import is_free
 
 #: Grid spacing of the signed-distance splines [m].
 GRID_STEP = 0.0025
@@ -36,7 +36,7 @@ def distance_spline(bones, body: str, lo: np.ndarray, hi: np.ndarray, name: str 
     """A smooth signed distance [m] to ``body``'s bone over the box ``lo``..``hi`` (body frame [m]).
 
     Args:
-        bones: A :class:`pamkin.bones.BoneSet`.
+        bones: A :class:`pamkin.human.bones.BoneSet`.
         body: The body whose bone meshes are meant (they must exist).
         lo, hi: (3,) corners of the box the function must cover [m].
         name: Name of the CasADi function.
@@ -72,7 +72,6 @@ def bracket_splines(pam, bones, seed: list[np.ndarray], regions: list) -> dict[i
     Returns:
         ``{point index: function}`` (see :func:`distance_spline`).
     """
-    from .samples import is_free  # noqa: PLC0415
 
     out: dict[int, ca.Function] = {}
     for i, pt in enumerate(pam.points):

@@ -8,7 +8,7 @@ them (``pam_clearance`` stays off, ``one_segment`` is on only for ``one_segment_
 earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
 
     design = "v2_seed"           # seed design file, run folder or keyword ("thesis", "split_gluteal", "v2_seed");
-                                 # "" = the robot's design robot/data/pam_biped.yaml
+                                 # "" = the robot's design robot/data/thesis_design.yaml
     actuators = []               # actuator ids; [] = all
     warm_start = ""              # run folder whose design.yaml seeds the routes and sizes (its diameter and
                                  # parallel count are tried first; the full loop only where they fail; a PAM
@@ -81,14 +81,14 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
     pam_clearance = false        # (v2, with bone_mesh) second pass: routes that hit another PAM's body are
                                  #      solved again with the first-pass bodies as obstacles
     rollers = false              # (v2, with bone_mesh) last stage: an actuator failing an audit fit limit on the
-                                 #      validation poses gets rollers (cable guides on bone, pamkin.rollers) where
+                                 #      validation poses gets rollers (cable guides on bone, pamkin.robot.rollers) where
                                  #      its fit without the bone rows goes into bone, long enough that the cable
                                  #      never slips off an end, kept where they lower its validation error and the
                                  #      route is clear (optimize.rollers); a warm re-run does not try again what its
                                  #      warm start's run tried without a gain
     detours = true               # (v2, with bone_mesh) a route segment between two points of one bone (a constant
                                  #      length) too short to hold the PAM body is left out of that bone's rows and
-                                 #      afterwards carried round it by via points (pamkin.detour; the added length
+                                 #      afterwards carried round it by via points (pamkin.robot.detour; the added length
                                  #      on the tendon: every torque unchanged), then checked against every bone
     max_units = 60               # (v2) PAM units of the whole robot (both sides; 0: no limit): the diameter
                                  #      and parallel count of every actuator are chosen together, before the
@@ -97,7 +97,7 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      walking trial, sampled between its frames, is feasible on less than
                                  #      this fraction, actuators at the pressure limit get another diameter /
                                  #      parallel count within the budget, solved again (0: off;
-                                 #      optimize.gait_check)
+                                 #      optimize.stages.walking)
     resize_above = 1.0           # (v2, with bone_mesh and max_units) after the bone rounds: an actuator whose fit
                                  #      objective is still above this gets its other diameters (same parallel
                                  #      count: the unit budget holds) through the bone rounds and the one-segment
@@ -107,13 +107,13 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      stage put on a pulley block, whose fit objective is above this (and not above
                                  #      resize_above), is solved again with a 3:1 block throughout (same diameter and
                                  #      count: first phase, bone rounds, one-segment stage); the lower score kept,
-                                 #      never a PAM off its straight segment (0: off; optimize.run.block_tasks)
+                                 #      never a PAM off its straight segment (0: off; optimize.stages.resize.block_tasks)
     reallocate = true            # (v2, with bone_mesh and max_units) after the re-sizing: a PAM unit of an actuator
                                  #      with several that fails both audit fit limits on the validation poses
                                  #      (its units buy no pass) moves to the failing actuator nearest to passing
                                  #      (at most 2 tried per unit, one more unit each: bone rounds, one-segment stage),
                                  #      where that one then passes both within 0.02 and the robot's mass stays
-                                 #      within max_mass_kg; the unit budget holds (optimize.run.reallocate_pass)
+                                 #      within max_mass_kg; the unit budget holds (optimize.stages.reallocate)
     resize_on = "objective"      # (v2) what the re-sizing compares: "objective" (score: fit objective + mass
                                  #      penalty) or "validation" (primary NRMSE + worst error on 400 poses like
                                  #      the audit's from the optimiser's own stream, optimize.validation)
@@ -128,14 +128,14 @@ earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
                                  #      run's own poses (optimize.pam_clearance.choose_ends)
 
     [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
-    [transmission]               # per actuator: "4" = 2 puts a 2:1 pulley block on its PAM (pamkin.design:
+    [transmission]               # per actuator: "4" = 2 puts a 2:1 pulley block on its PAM (pamkin.robot.design:
                                  # the route moves twice the PAM's stroke at half its force); default: the
                                  # seed design's (1: direct)
     [eyelets]                    # per actuator: "19" = "talus_r", or {body = "talus_r", at = 0.5, gap = 0.008},
                                  # or a list of those: an eyelet (a via point on a bracket of that body) in
                                  # the seed route (of an optimised actuator) where it passes the body between
                                  # its segment's ends' bodies,
-                                 # before the fit (pamkin.eyelets.add_eyelet: where the segment comes nearest
+                                 # before the fit (pamkin.robot.eyelets.add_eyelet: where the segment comes nearest
                                  # the bone at the default pose, or a fraction "at" along it; "gap" [m] off
                                  # the bone, default 0.008); the optimiser then moves it like any point.
                                  # Default: soleus (12) nearest, peroneus tertius (19), extensor digitorum
@@ -150,11 +150,13 @@ import copy
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 
-from pamkin.design import TRANSMISSIONS
-from pamkin.errors import DataFileError
+from pamkin.errors import ConfigurationError, DataFileError
+from pamkin.human.bones import BoneSet
+from pamkin.robot.design import TRANSMISSIONS, rescale_for_transmission, unit_mass
+from pamkin.robot.eyelets import EYELET_GAP_M, add_eyelet, has_eyelet
 
 _SECTIONS = {
     "samples": {"primary": "n_primary", "secondary": "n_secondary", "constraint": "n_constraint",
@@ -410,7 +412,6 @@ class RunConfig:
     def eyelet_specs(self) -> dict[int, list[dict]]:
         """The ``[eyelets]`` table as {actuator id: [{"body", "at", "gap"}, ...]} ("at" None: the segment's
         nearest approach to the bone)."""
-        from pamkin.eyelets import EYELET_GAP_M  # noqa: PLC0415
 
         out = {}
         for k, v in self.eyelets.items():
@@ -422,7 +423,7 @@ class RunConfig:
     def apply_eyelets(self, design, model, bones=None) -> tuple[object, list[str]]:
         """The design with the ``[eyelets]`` table's eyelets put into the routes of the actuators the run
         optimises (``actuators``; all when empty: an eyelet changes the route's lengths, which only a fit
-        makes good), with a log line per eyelet (:func:`pamkin.eyelets.add_eyelet`). A route that already
+        makes good), with a log line per eyelet (:func:`pamkin.robot.eyelets.add_eyelet`). A route that already
         holds a point on the body (a warm start's eyelet, or the seed's own point) is left as it is. Entries of
         the default table that do not fit the design (no such actuator, no segment passing the body) are
         skipped; a table given in the config must fit.
@@ -430,13 +431,11 @@ class RunConfig:
         Args:
             design: Seed design.
             model: Human model (kinematic tree, default pose).
-            bones: :class:`pamkin.bones.BoneSet` (default: the model's meshes, loaded when needed).
+            bones: :class:`pamkin.human.bones.BoneSet` (default: the model's meshes, loaded when needed).
 
         Raises:
             DataFileError: naming the config file and the key, where a given entry does not fit.
         """
-        from pamkin.errors import ConfigurationError  # noqa: PLC0415
-        from pamkin.eyelets import add_eyelet, has_eyelet  # noqa: PLC0415
 
         default = self.eyelets == DEFAULT_EYELETS
         ids = {p.id for p in design.pams}
@@ -455,7 +454,6 @@ class RunConfig:
                     lines.append(f"eyelets: actuator {aid} {pam.name}: its route already has a point on {body}")
                     continue
                 if bones is None:
-                    from pamkin.bones import BoneSet  # noqa: PLC0415
 
                     bones = BoneSet(model)
                 try:
@@ -475,10 +473,9 @@ class RunConfig:
     def apply_transmission(self, design):
         """The design with the ``[transmission]`` table's ratios put on its PAMs (others unchanged). A PAM whose
         ratio changes from k to k' keeps its strain at every route length
-        (:func:`pamkin.design.rescale_for_transmission`) — a start for the optimiser, which solves both again."""
+        (:func:`pamkin.robot.design.rescale_for_transmission`) — a start for the optimiser, which solves both again."""
         import dataclasses  # noqa: PLC0415
 
-        from pamkin.design import rescale_for_transmission  # noqa: PLC0415
 
         for key, v in self.transmission.items():
             p = design.pam(int(key))
@@ -492,8 +489,7 @@ class RunConfig:
 
     def mass_penalty(self, diameter_mm: int, n_parallel: int, resting_length: float, transmission: int = 1) -> float:
         """The objective's mass penalty of ``n_parallel`` PAMs of a diameter, resting length [m] and
-        transmission, both sides: ``weight_mass`` × their estimated mass [kg] (:func:`pamkin.design.unit_mass`)."""
-        from pamkin.design import unit_mass  # noqa: PLC0415
+        transmission, both sides: ``weight_mass`` × their estimated mass [kg] (:func:`pamkin.robot.design.unit_mass`)."""
 
         return self.weight_mass * 2 * n_parallel * unit_mass(resting_length, diameter_mm, transmission)
 
@@ -521,7 +517,12 @@ for _f in fields(RunConfig):
 
 
 def load_config(path: str | Path | None) -> RunConfig:
-    """Read a TOML run description (None: all defaults); every value is checked (:meth:`RunConfig.validate`)."""
+    """Read a TOML run description (None: all defaults); every value is checked (:meth:`RunConfig.validate`).
+
+    Raises:
+        pamkin.errors.DataFileError: the file is missing or not TOML, or a key is unknown or out of range (the
+            message names the file and the key).
+    """
     if path is None:
         cfg = RunConfig()
         cfg.validate()
@@ -531,29 +532,101 @@ def load_config(path: str | Path | None) -> RunConfig:
         data = tomllib.loads(path.read_text())
     except FileNotFoundError:
         raise DataFileError(str(path), "file not found") from None
-    except tomllib.TOMLDecodeError as e:
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise DataFileError(str(path), f"not valid TOML: {e}") from None
+    return config_from_dict(data, str(path))
+
+
+def config_from_dict(data: dict, source: str) -> RunConfig:
+    """A run description from its TOML form as a mapping (``source``: the file named in errors)."""
     kwargs: dict = {}
     top = {f.name for f in fields(RunConfig)} - {"source"} - {n for s in _SECTIONS.values() for n in s.values()}
     for key, value in data.items():
         if key in _SECTIONS:
             if not isinstance(value, dict):
-                raise DataFileError(str(path), f"[{key}] must be a table")
+                raise DataFileError(source, f"[{key}] must be a table")
             for k, v in value.items():
                 if k not in _SECTIONS[key]:
-                    raise DataFileError(str(path), f"unknown key {key}.{k}; known: {sorted(_SECTIONS[key])}")
+                    raise DataFileError(source, f"unknown key {key}.{k}; known: {sorted(_SECTIONS[key])}")
                 kwargs[_SECTIONS[key][k]] = v
         elif key in ("regions", "transmission", "eyelets"):
             if not isinstance(value, dict):
-                raise DataFileError(str(path), f"[{key}] must be a table")
+                raise DataFileError(source, f"[{key}] must be a table")
             kwargs[key] = dict(value)
         elif key in top:
             kwargs[key] = value
         else:
-            raise DataFileError(str(path), f"unknown key {key!r}; known: {sorted(top | set(_SECTIONS))}")
+            raise DataFileError(source, f"unknown key {key!r}; known: {sorted(top | set(_SECTIONS))}")
     try:
-        cfg = RunConfig(**kwargs, source=str(path))
+        cfg = RunConfig(**kwargs, source=source)
     except TypeError as e:
-        raise DataFileError(str(path), str(e)) from None
+        raise DataFileError(source, str(e)) from None
     cfg.validate()
     return cfg
+
+
+def config_to_dict(cfg: RunConfig) -> dict:
+    """The TOML form of a run description as a mapping (what :func:`config_from_dict` reads back)."""
+    out: dict = {}
+    by_field = {f: (sec, key) for sec, keys in _SECTIONS.items() for key, f in keys.items()}
+    for f in fields(RunConfig):
+        if f.name == "source":
+            continue
+        value = copy.deepcopy(getattr(cfg, f.name))
+        if f.name in by_field:
+            sec, key = by_field[f.name]
+            out.setdefault(sec, {})[key] = value
+        else:
+            out[f.name] = value
+    return out
+
+
+def _default_text(f) -> str:
+    value = f.default_factory() if f.default_factory is not MISSING else f.default  # type: ignore[misc]
+    return repr(value).replace("'", '"').replace("True", "true").replace("False", "false")
+
+
+def config_reference_markdown() -> str:
+    """The reference page of every configuration key (Markdown): section, key, type, default and description,
+    read from this module (the TOML example of its docstring and :class:`RunConfig`'s fields)."""
+    doc = _key_docs()
+    by_field = {f: (sec, key) for sec, keys in _SECTIONS.items() for key, f in keys.items()}
+    rows: dict[str, list[str]] = {}
+    for f in fields(RunConfig):
+        if f.name == "source":
+            continue
+        sec, key = by_field.get(f.name, ("", f.name))
+        if f.name in ("regions", "transmission", "eyelets"):
+            sec, key = f.name, "(table)"
+        text = doc.get((sec, key), "").replace("|", "\\|")
+        kind = _KINDS.get(f.name, "table")
+        rows.setdefault(sec, []).append(f"| `{key}` | {kind} | `{_default_text(f)}` | {text} |")
+    out = ["Every key of a `pamkin optimize` TOML run description, by section (generated from "
+           "`pamkin.optimize.config`). Every key is optional; an unknown key or section, a wrong type or a value "
+           "out of range stops the run before any solve with an error naming the file and the key (exit 2).", ""]
+    for sec in sorted(rows, key=lambda s: (s != "", s)):
+        out += [f"## {'Top level' if not sec else '[' + sec + ']'}", "", "| key | type | default | description |",
+                "|---|---|---|---|", *rows[sec], ""]
+    return "\n".join(out)
+
+
+def _key_docs() -> dict[tuple[str, str], str]:
+    """(section, key) -> the description of the key in the module docstring's TOML example."""
+    out: dict[tuple[str, str], str] = {}
+    section, last = "", None
+    for line in (__doc__ or "").splitlines():
+        text = line.strip()
+        m = re.match(r"^\[(\w+)\]\s*(#\s*(.*))?$", text)
+        if m:
+            section, last = m.group(1), None
+            if m.group(3):
+                out[(section, "(table)")] = m.group(3)
+                last = (section, "(table)")
+            continue
+        m = re.match(r"^(\w+)\s*=\s*[^#]*(#\s*(.*))?$", text)
+        if m and line.startswith("    ") and not line.startswith("     "):
+            last = (section, m.group(1))
+            out[last] = (m.group(3) or "").strip()
+        elif text.startswith("#") and last is not None:
+            out[last] = (out[last] + " " + text.lstrip("# ").strip()).strip()
+    return out

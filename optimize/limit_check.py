@@ -14,14 +14,19 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+from pamkin.optimize.samples import (
+    OPTIMIZE_STREAM,
+    RATED_MARGIN,
+    STRAIN_MARGIN,
+    boundary_poses,
+    poses_from_unit,
+    with_dependencies,
+)
 
-from pamkin import festo
-from pamkin.design import Pam, pam_length
 from pamkin.errors import RangeWarning
-from pamkin.paths import PathSet
-
-from .samples import (OPTIMIZE_STREAM, RATED_MARGIN, STRAIN_MARGIN, boundary_poses, poses_from_unit,
-                      with_dependencies)
+from pamkin.human.paths import PathSet
+from pamkin.robot import festo
+from pamkin.robot.design import Pam, pam_length
 
 #: Check poses per actuator (half uniform, half on the range boundary).
 N_CHECK = 2000

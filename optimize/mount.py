@@ -14,7 +14,7 @@ a miss tightens the rows once and solves again). The result replaces the spannin
 the objective grows by at most ``cfg.mount_cost``; otherwise the run names the PAM and the reason:
 
 * **out of reach**: the PAM's excursion needs a resting length of at least ΔL / (k (c + s)) (k = the
-  transmission, :mod:`pamkin.design`; c = Festo's
+  transmission, :mod:`pamkin.robot.design`; c = Festo's
   25 % contraction or kmax, s = the stretch limit), more than the longest segment holds at its shortest
   less the fittings — no choice of lengths can put it on one segment; the numbers are reported;
 * **infeasible**: within reach by that bound, but the solve finds no lengths meeting every limit;
@@ -38,15 +38,15 @@ import warnings
 
 import casadi as ca
 import numpy as np
+from pamkin.optimize.bone_cuts import bone_stage
+from pamkin.optimize.limit_check import EXTRA, check_poses, limit_excess, tighten
+from pamkin.optimize.problem import SEGMENT_MARGIN, _norm_rows
 
-from pamkin import festo
-from pamkin.design import Pam, pam_length, tendon_for
-from pamkin.pam_body import segment_margin, segment_names
 from pamkin.errors import RangeWarning
-from pamkin.paths import PathSet
-
-from .limit_check import EXTRA, check_poses, limit_excess, tighten
-from .problem import SEGMENT_MARGIN, _norm_rows
+from pamkin.human.paths import PathSet
+from pamkin.robot import festo
+from pamkin.robot.design import Pam, pam_length, tendon_for
+from pamkin.robot.pam_body import segment_margin, segment_names
 
 #: Segments tried per route (the longest at their shortest constraint sample first).
 N_SEGMENTS = 2
@@ -56,7 +56,7 @@ def held_out_margin(pam: Pam, model, q: np.ndarray, segment: int, fitting: float
     """Smallest room [m] left on route segment ``segment`` by the PAM body (max(resting, actual length)
     + both fittings) over the poses ``q`` (negative: it does not fit), at one constant place along the route
     where the route moves on both sides of the segment — the audit's measure
-    (:func:`pamkin.pam_body.segment_margin`)."""
+    (:func:`pamkin.robot.pam_body.segment_margin`)."""
     kin = model.kinematics
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RangeWarning)
@@ -260,9 +260,9 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam, failing=Non
 
 #: Transmissions :func:`mount_block` tries, in this order, for a PAM the one-segment stage cannot mount at 1:1:
 #: a 2:1 pulley block, and where no diameter mounts on one, a 3:1 block (a third of the stroke and force;
-#: a second pulley, :func:`pamkin.festo.transmission_mass`). The first ratio that mounts is kept; a diameter
+#: a second pulley, :func:`pamkin.robot.festo.transmission_mass`). The first ratio that mounts is kept; a diameter
 #: that fits the 2:1 block only at a fit cost is not tried at 3:1 (a third of the force: measured worse at
-#: every such try of the stop-27 default run, vasti 40 mm root +0.49 -> +0.66, internal oblique, psoas and
+#: every such try of the 0.1.0-dev default run, vasti 40 mm root +0.49 -> +0.66, internal oblique, psoas and
 #: both gluteus medius/minimus at 20 mm).
 BLOCKS = (2, 3)
 
@@ -281,7 +281,7 @@ def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam,
     2:1 block, and where no diameter mounts on it a 3:1 block (:data:`BLOCKS`; not for a diameter that fit
     the 2:1 block at a fit cost) — the same route and
     parallel count, the same or a larger diameter, resting length and tendon solved again with the PAM on
-    one segment — 1/k of the stroke at 1/k of the force on the route (:mod:`pamkin.design`, transmission) —
+    one segment — 1/k of the stroke at 1/k of the force on the route (:mod:`pamkin.robot.design`, transmission) —
     by :func:`mount_stage` under its rule against the direct PAM's objective (root + <= ``mount_cost``, or a
     reason from ``failing`` to accept a larger cost, ``mount_passing``; strain, force and segment re-checked on
     the held-out poses). Of the diameters that pass at the first
@@ -294,7 +294,7 @@ def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam,
     """
     import dataclasses  # noqa: PLC0415
 
-    from .problem import ActuatorProblem  # noqa: PLC0415
+    from pamkin.optimize.problem import ActuatorProblem  # noqa: PLC0415
 
     if not (cfg.mount_blocks and info.get("reason") in BLOCK_REASONS and prob.k == 1 and best.success):
         return best, prob, info
@@ -340,14 +340,14 @@ def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam,
 
 #: Mount rounds (:func:`mount_rounds`) are tried where the fixed route's mount failed on fit cost by at most
 #: this multiple of ``mount_cost``, or was out of reach by at most :data:`ROUNDS_REACH` (least resting length
-#: ÷ what the segment holds). The others are not tried: measured on the default run (stop 24), none of the
+#: ÷ what the segment holds). The others are not tried: measured on the default run (0.1.0-dev), none of the
 #: six "infeasible" PAMs passed with their points free (root cost +0.10 to +1.75); of those out of reach, the
 #: two between 8 and 15 % (flexor digitorum longus 1.11, vasti 1.10) were tried in vain (43 s of worker time)
 #: and the others need 31-83 % more segment than they have.
 ROUNDS_COST_FACTOR = 2.0
 ROUNDS_REACH = 1.08
 #: ... or was infeasible only because the PAM overran the segment, by at most this much [m] (the points
-#: free can lengthen the segment; measured at stop 39 on the internal oblique, 3.7 mm short on its fixed route).
+#: free can lengthen the segment; measured at 0.1.0-dev on the internal oblique, 3.7 mm short on its fixed route).
 ROUNDS_SEGMENT_MISS = 0.01
 #: Bone rounds of a mount try, and their first trust region [m] (smaller than the bone stage's: the route is
 #: already clear of bone; a 20 mm first step cost the flexor digitorum longus two 10 s solves at the CPU cap).
@@ -394,7 +394,6 @@ def mount_rounds(prob, best, info: dict, pam: Pam, cfg, cuts, model, rom, soluti
             return best, prob, info
     else:
         return best, prob, info
-    from .bone_cuts import bone_stage  # noqa: PLC0415
 
     t0 = time.perf_counter()
     names = segment_names(pam)

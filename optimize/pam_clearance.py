@@ -3,19 +3,30 @@ PAM–PAM clearance pass.
 
 A PAM body is the part of its route at the anchored end of its mount segment (the segment that best holds
 the PAM with both fittings) for the PAM length plus both fittings, with Festo's assumed outer diameter
-(:func:`pamkin.festo.outer_diameter`) — exactly what ``pamkin audit`` tests
-(:func:`pamkin.pam_body.placement`, :func:`pamkin.pam_body.pam_capsules`).
+(:func:`pamkin.robot.festo.outer_diameter`) — exactly what ``pamkin audit`` tests
+(:func:`pamkin.robot.pam_body.placement`, :func:`pamkin.robot.pam_body.pam_capsules`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
-from pamkin import festo
-from pamkin.errors import RangeWarning
+from pamkin.audit.measure import CLEARANCE_TOLERANCE, GAIT_IK, gait_poses, random_poses
+from pamkin.errors import PamkinError, RangeWarning
+from pamkin.human.bones import body_pair_distance
+from pamkin.robot import festo
+from pamkin.robot.biped import PamRobot, placements
+from pamkin.robot.design import Design
+from pamkin.robot.pam_body import (
+    pam_capsules,
+    route_positions,
+    segment_names,
+    segment_options,
+)
 
 
 @dataclass
@@ -30,7 +41,6 @@ class Body:
 
 def pam_bodies(design, model, q: np.ndarray) -> list[Body]:
     """The right-side PAM bodies of every actuator of ``design`` at poses ``q`` (S, n_coordinates)."""
-    from pamkin.pam_body import pam_capsules, placements
 
     fit = 2 * design.fitting_length_m
     out = []
@@ -58,8 +68,6 @@ ENDS_RANDOM = 500
 
 def _walking_midframes(model) -> np.ndarray:
     """Both legs of the walking trial *between* its frames (never an audit sample); empty without it."""
-    from pamkin.audit import GAIT_IK, gait_poses
-    from pamkin.errors import PamkinError
 
     try:
         g, _ = gait_poses(model, GAIT_IK)
@@ -71,7 +79,7 @@ def _walking_midframes(model) -> np.ndarray:
 def choose_ends(design, model, rom, seed: int = 0, n_random: int = ENDS_RANDOM):
     """Where every PAM on one straight segment sits: the segment (``pam_on``, where the body fits on more
     than one) and the end of it the PAM is anchored at (``pam_at``, where the route on both sides of the
-    segment has a fixed length: :func:`pamkin.pam_body.segment_options`) — the choice with the fewest
+    segment has a fixed length: :func:`pamkin.robot.pam_body.segment_options`) — the choice with the fewest
     intersecting PAM pairs, left–right (walking trial) first, then same side (random poses and the walking
     trial): a local search from the default places, one PAM moved at a time, at poses of the optimiser's own
     stream (:data:`ENDS_STREAM`). The routes, sizes and so every torque are unchanged.
@@ -80,13 +88,7 @@ def choose_ends(design, model, rom, seed: int = 0, n_random: int = ENDS_RANDOM):
         ``(design, lines)``: the design with ``pam_on`` and ``pam_at`` set on every PAM on one segment (the
         default place included, so the file says where each PAM sits) and a log line per PAM moved.
     """
-    import dataclasses
 
-    from pamkin.audit import CLEARANCE_TOLERANCE, random_poses
-    from pamkin.bones import body_pair_distance
-    from pamkin.design import Design
-    from pamkin.pam_body import pam_capsules, placements, route_positions, segment_names, segment_options
-    from pamkin.robot import PamRobot
 
     n = len(design.pams)
     both = PamRobot(design, model)

@@ -7,7 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
-from pamkin.design import Design
+import pamkin
+from pamkin.human.rom import load_rom
+from pamkin.human.urdf import atomic_write
+from pamkin.robot.biped import PamRobot, robot_skeleton
+from pamkin.robot.design import Design
 
 
 def before_after_plot(seed: Design, new: Design, path: Path, n: int = 61, seed_label: str | None = None) -> Path:
@@ -20,10 +24,6 @@ def before_after_plot(seed: Design, new: Design, path: Path, n: int = 61, seed_l
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # noqa: PLC0415
 
-    import pamkin  # noqa: PLC0415
-    from pamkin.robot import PamRobot, robot_skeleton  # noqa: PLC0415
-    from pamkin.rom import load_rom  # noqa: PLC0415
-    from pamkin.urdf_build import atomic_write  # noqa: PLC0415
 
     human = pamkin.gait2392()
     skel = robot_skeleton()

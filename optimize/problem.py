@@ -2,11 +2,11 @@
 
 Decision variables: every body-fixed route point's location in its body frame (a box around its
 seed), the PAM's resting length l0 and its artificial tendon length t. Diameter and the number of
-parallel PAMs are fixed per solve (the outer loop in :mod:`optimize.run`).
+parallel PAMs are fixed per solve (the outer loop in :func:`optimize.actuator.solve_actuator`).
 
 World positions are affine in the decision variables (x = p_b + R_b ℓ with numeric placements), so
-the library's own path formulas (:func:`pamkin.paths.path_length`, :func:`pamkin.paths.path_moment_arm`,
-:func:`pamkin.paths.point_velocity`) and Festo force model (:func:`pamkin.festo.force`) give lengths,
+the library's own path formulas (:func:`pamkin.human.paths.path_length`, :func:`pamkin.human.paths.path_moment_arm`,
+:func:`pamkin.human.paths.point_velocity`) and Festo force model (:func:`pamkin.robot.festo.force`) give lengths,
 moment arms, contractions, forces and torques as CasADi expressions.
 
 Objective: Σ_c w_c · mean_s (τ_robot − τ_human)² / peak_c² + λ Σ_i |ℓ_i − ℓ_i⁰|² / region_i².
@@ -26,17 +26,16 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
+from pamkin.optimize.bracket import BAND as BRACKET_BAND
+from pamkin.optimize.config import RunConfig
+from pamkin.optimize.limit_check import limit_rows
+from pamkin.optimize.pam_clearance import segment_point_distance
+from pamkin.optimize.roller_model import segment_terms
+from pamkin.optimize.samples import CLEARANCE_MARGIN, CLEARANCE_T, ActuatorData, is_free
 
-from pamkin import festo
-from pamkin.design import mirror_name, pam_length, tendon_for
-from pamkin.paths import path_length, path_moment_arm, point_velocity
-
-from .bracket import BAND as BRACKET_BAND
-from .config import RunConfig
-from .limit_check import limit_rows
-from .pam_clearance import segment_point_distance
-from .roller_model import segment_terms
-from .samples import CLEARANCE_MARGIN, CLEARANCE_T, ActuatorData, is_free
+from pamkin.human.paths import path_length, path_moment_arm, point_velocity
+from pamkin.robot import festo
+from pamkin.robot.design import mirror_name, pam_length, tendon_for
 
 
 @dataclass
@@ -137,7 +136,7 @@ class ActuatorProblem:
             Lseg, dseg = segment_terms(X[j], X[j + 1], rd)
             self.L = self.L - _norm_rows(X[j + 1] - X[j]) + Lseg
             rolled[j] = dseg
-        #: transmission (pamkin.design): the route moves k times the PAM's stroke at 1/k of its force
+        #: transmission (pamkin.robot.design): the route moves k times the PAM's stroke at 1/k of its force
         self.k = int(data.pam.transmission)
         pam_len = pam_length(self.L, self.t, self.k, data.fitting_length)
         self.strain = (self.l0 - pam_len) / self.l0
@@ -309,7 +308,7 @@ class ActuatorProblem:
         """The PAM on route segment ``segment`` at every constraint sample, as two (S_c, 1) CasADi rows
         ≥ 0: the segment holds the resting PAM, and the actual (possibly stretched) PAM, with both fittings
         and :data:`SEGMENT_MARGIN` (the tendon takes the rest of the route). The audit's measure is
-        :func:`pamkin.pam_body.body_room`."""
+        :func:`pamkin.robot.pam_body.body_room`."""
         ci = [int(s) for s in self.data.constraint_idx]
         seg = _norm_rows(self.X[segment + 1] - self.X[segment])[0, ci]
         rest = (seg - (self.l0 + 2 * self.data.fitting_length + SEGMENT_MARGIN)).T

@@ -1,6 +1,6 @@
 """Rollers in the optimiser's CasADi problem: a route segment's length over a roller and its derivative.
 
-The library (:mod:`pamkin.rollers`) computes a roller as OpenSim's ``WrapCylinder`` does; the optimiser
+The library (:mod:`pamkin.robot.rollers`) computes a roller as OpenSim's ``WrapCylinder`` does; the optimiser
 needs an expression smooth enough for IPOPT, so it uses the exact shortest path over an infinite cylinder
 instead: in the roller's frame (z its axis, x the side the cable passes on), with a, b the segment's ends,
 ρ their distances from the axis and θ their angles about it (atan2(y, x)), the cable wraps where the ends

@@ -8,7 +8,7 @@ this stage
 
 1. solves its problem again from its result without the bone-mesh rows (its attachment points stay on
    their bones within the bracket band; the segments may enter bone): the *bracket-only fit*;
-2. puts a roller (:mod:`pamkin.rollers`) on each segment of that fit that goes deeper than the audit's
+2. puts a roller (:mod:`pamkin.robot.rollers`) on each segment of that fit that goes deeper than the audit's
    limit into a bone at the bone-check poses (not on the PAM's own segment): fixed in that bone at the
    deepest penetration, on the side the segment passes where it clears the bone, a gap off the surface,
    its axis across the segment (:func:`place`);
@@ -19,9 +19,9 @@ this stage
    pose): every straight piece within the limit, every attachment point and roller outside its bone and
    within the bracket distance; a piece still too deep moves its roller out by half the depth (up to
    :data:`PLACE_ROUNDS` rounds), unless the fit with the rollers is already no better than the result's.
-   In the problem a roller is open-ended (:data:`pamkin.rollers.OPEN_LENGTH_M`: OpenSim drops a wrap whose
+   In the problem a roller is open-ended (:data:`pamkin.robot.rollers.OPEN_LENGTH_M`: OpenSim drops a wrap whose
    tangent points pass beyond the cylinder's ends, a step in the route's length the fit could exploit; measured
-   at stop 38, internal oblique's 30 mm roller lost its cable at 29 % of random poses and most of its gain with
+   at 0.1.0-dev, internal oblique's 30 mm roller lost its cable at 29 % of random poses and most of its gain with
    it); after the solve it gets the shortest length
    on which the cable stays at every bone-check and validation pose (:func:`size_rollers`): a cable that
    would slip off a roller's end is a guide that fails, and its step in length a fit that is not real;
@@ -38,14 +38,16 @@ import dataclasses
 import warnings
 
 import numpy as np
+from pamkin.optimize.bone_cuts import right_only_query
+from pamkin.optimize.roller_model import RollerData
 
-from pamkin.design import Design, Pam
 from pamkin.errors import RangeWarning
-from pamkin.paths import PathSet
-from pamkin.rollers import Roller, open_ended, roller_axis_points, roller_world
-
-from .bone_cuts import right_only_query
-from .roller_model import RollerData
+from pamkin.human.paths import PathSet
+from pamkin.opensim.model_file import MovingPathPoint
+from pamkin.robot.biped import PamRobot
+from pamkin.robot.design import Design, Pam
+from pamkin.robot.pam_body import route_positions
+from pamkin.robot.rollers import Roller, open_ended, roller_axis_points, roller_world
 
 #: Roller radius [m].
 RADIUS = 0.005
@@ -107,8 +109,6 @@ def depths(pam: Pam, model, bones, q: np.ndarray, design: Design, n_right_only: 
     any bone at poses ``q`` — the first ``n_right_only`` of them move the right leg only and are tested
     against the right side's bones, as the audit's random poses — and the own-bone distances of its
     fixed points and rollers."""
-    from pamkin.osim import MovingPathPoint
-    from pamkin.robot import PamRobot
 
     robot = PamRobot(Design("check", (pam,), design.pressure_Pa, design.force_model, design.fitting_length_m,
                             design.rom), model, sides=("r",))
@@ -139,9 +139,8 @@ def depths(pam: Pam, model, bones, q: np.ndarray, design: Design, n_right_only: 
 
 def size_rollers(pam: Pam, model, q: np.ndarray, design: Design) -> Pam | None:
     """``pam`` with each roller the shortest of :data:`LENGTHS` (centred where it is) on which the cable never
-    leaves it over an end at poses ``q``: the route as long as over an open-ended roller (:func:`pamkin.rollers.open_ended`) at
+    leaves it over an end at poses ``q``: the route as long as over an open-ended roller (:func:`pamkin.robot.rollers.open_ended`) at
     every pose (1e-9 m). None where even the longest loses the cable."""
-    from pamkin.robot import PamRobot  # noqa: PLC0415
 
     def lengths(p: Pam) -> np.ndarray:
         des = Design("size", (p,), design.pressure_Pa, design.force_model, design.fitting_length_m, design.rom)
@@ -168,8 +167,6 @@ def place(bones, model, q: np.ndarray, pam: Pam, j: int, hit: tuple, gap: float 
     mean direction, across the segment, from the deepest point to the segment at those poses; the bone's
     surface normal where it never clears it), ``gap`` off the surface there, its axis across the segment
     and that side. None where no such side can be found."""
-    from pamkin.pam_body import route_positions  # noqa: PLC0415
-    from pamkin.robot import PamRobot  # noqa: PLC0415
 
     s, x, body = hit
     kin = model.kinematics

@@ -12,16 +12,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from pamkin.optimize.config import RunConfig
 
 from pamkin._resources import data_file
-from pamkin.design import Pam
-from pamkin.errors import RangeWarning
-from pamkin.model import Model
-from pamkin.osim import MovingPathPoint
-from pamkin.paths import PathSet
-from pamkin.rom import RangeOfMotion
-
-from .config import RunConfig
+from pamkin.audit.measure import GAIT_IK, gait_poses
+from pamkin.errors import PamkinError, RangeWarning
+from pamkin.human.model import Model
+from pamkin.human.paths import PathSet
+from pamkin.human.rom import RangeOfMotion
+from pamkin.opensim.model_file import MovingPathPoint
+from pamkin.robot.design import Pam
 from pamkin.yamlio import safe_load
 
 CAPSULES_FILE = data_file("bone_capsules.yaml")
@@ -269,7 +269,7 @@ def crossed_coordinates(model: Model, rom: RangeOfMotion, route, human_torque, n
 
 def with_dependencies(model: Model, rom: RangeOfMotion, coords: list[str]) -> list[str]:
     """``coords`` that ``rom`` limits, plus the coordinates their coupled limits depend on (so that
-    :meth:`pamkin.rom.RangeOfMotion.from_unit` can place them)."""
+    :meth:`pamkin.human.rom.RangeOfMotion.from_unit` can place them)."""
     coords = [c for c in coords if c in rom.coordinates]
     for c in list(coords):
         dep = getattr(rom._coupled_by.get(c), "depends_on", None)
@@ -280,7 +280,7 @@ def with_dependencies(model: Model, rom: RangeOfMotion, coords: list[str]) -> li
 
 def poses_from_unit(model: Model, rom: RangeOfMotion, coords: list[str], u: np.ndarray) -> np.ndarray:
     """(N, n_coordinates) poses with ``coords`` placed in their range by the numbers ``u`` (N, len(coords))
-    in [0, 1] (:meth:`pamkin.rom.RangeOfMotion.from_unit`), every other coordinate 0."""
+    in [0, 1] (:meth:`pamkin.human.rom.RangeOfMotion.from_unit`), every other coordinate 0."""
     q = np.zeros((len(u), len(model.coordinates)))
     for c, v in rom.from_unit(coords, u).items():
         q[:, model.coordinates.index(c)] = v
@@ -334,14 +334,11 @@ def gait_training_poses(model: Model, ik_path=None, stride: int = GAIT_STRIDE) -
     ``stride``-th pair, so never an audit sample): the right leg as recorded and the left leg
     mirrored onto the right (lumbar bending and rotation negated); pelvis at 0. Empty when the
     trial or the model's coordinates are missing."""
-    from pamkin.audit import GAIT_IK  # noqa: PLC0415
-    from pamkin.errors import PamkinError  # noqa: PLC0415
 
     path = Path(ik_path or GAIT_IK)
     right = [c for c in model.coordinates if c.endswith("_r")]
     if not path.is_file() or not right:
         return np.zeros((0, len(model.coordinates)))
-    from pamkin.audit import gait_poses  # noqa: PLC0415
 
     try:
         g, _ = gait_poses(model, path)

@@ -1,5 +1,5 @@
 """Validation poses: how an actuator's result fits multi-joint poses it was not trained on, so that the run's
-choices between finished results (:func:`optimize.run.resize_pass`) are made on held-out error rather than
+choices between finished results (:mod:`optimize.stages.resize`) are made on held-out error rather than
 on the training objective.
 
 The poses are drawn like the audit's (every right-leg and lumbar coordinate uniform within the range of
@@ -14,8 +14,11 @@ import warnings
 
 import numpy as np
 
-from pamkin.design import Design, Pam
+from pamkin.audit.compare import failing_as_worst
+from pamkin.audit.measure import random_poses, torque_metrics
 from pamkin.errors import RangeWarning
+from pamkin.robot.biped import PamRobot
+from pamkin.robot.design import Design, Pam
 
 #: Random stream of the validation poses (``SeedSequence(seed, spawn_key=(VALIDATION_STREAM,))``).
 VALIDATION_STREAM = 0xA0D6
@@ -25,7 +28,6 @@ N_VALIDATION = 400
 
 def validation_poses(model, rom, seed: int = 0, n: int = N_VALIDATION) -> np.ndarray:
     """``n`` poses like the audit's random poses, from :data:`VALIDATION_STREAM`."""
-    from pamkin.audit import random_poses
 
     return random_poses(model, rom, n, seed, stream=VALIDATION_STREAM)
 
@@ -38,15 +40,12 @@ def validation_error(pam: Pam, model, q: np.ndarray, human_torques: np.ndarray, 
     (default: a design's defaults, 620 kPa and v3). Where the human muscles give no torque about the primary
     coordinate at these poses both errors are undefined: they count as infinite (the worst, as in the audit),
     so such a result never wins a comparison."""
-    from pamkin.robot import PamRobot
 
     base = design or Design("validation", ())
     des = Design(base.name, (pam,), base.pressure_Pa, base.force_model, base.fitting_length_m, base.rom)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RangeWarning)
         tr = PamRobot(des, model, sides=("r",)).evaluate(q).torques[:, 0, :]
-    from pamkin.audit import torque_metrics
-    from pamkin.compare import failing_as_worst
 
     idx = [model.muscles.index(m) for m in pam.human_muscles]
     th = human_torques[:, idx].sum(axis=1)

@@ -4,7 +4,7 @@ Start with :func:`load_osim`, which imports an OpenSim model and returns a
 :class:`Model` with kinematics, muscle paths, forces and torques.
 """
 
-from .errors import (
+from pamkin.errors import (
     ConfigurationError,
     EquilibriumWarning,
     OsimError,
@@ -13,7 +13,7 @@ from .errors import (
     RangeWarning,
     UnsupportedFeatureError,
 )
-from .model import Model, gait2392, load_osim
+from pamkin.human.model import Model, gait2392, load_osim
 
 __all__ = [
     "ConfigurationError",

@@ -2,7 +2,7 @@
 
 import sys
 
-from .cli import main
+from pamkin.cli import main
 
 if __name__ == "__main__":      # not when a spawned process imports it (the background audit)
     sys.exit(main())

@@ -2,7 +2,7 @@
 
 The project keeps its data in top-level folders of the repository (``robot/``: Xacro sources and
 data files; ``urdf/``: generated URDFs and bone meshes). The wheel installs them inside the
-package (``pyproject.toml`` maps ``pamkin.robot_sources -> robot``, as ``pamkin.robot`` is a module,
+package (``pyproject.toml`` maps ``pamkin.robot_sources -> robot``, beside the ``pamkin.robot`` package,
 and ``pamkin.urdf -> urdf``), so they are found
 
 * in an installed wheel: ``<site-packages>/pamkin/robot_sources`` and ``<site-packages>/pamkin/urdf``;

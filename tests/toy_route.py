@@ -9,12 +9,12 @@ import numpy as np
 import trimesh
 
 import pamkin
-from pamkin.design import Design, Pam
+from pamkin.robot.design import Design, Pam
 from pamkin.optimize.config import FAST_FIT, RunConfig
 from pamkin.optimize.samples import actuator_data
-from pamkin.osim import PathPoint
-from pamkin.robot import PamRobot
-from pamkin.rom import RangeOfMotion
+from pamkin.opensim.model_file import PathPoint
+from pamkin.robot.biped import PamRobot
+from pamkin.human.rom import RangeOfMotion
 
 DATA = Path(__file__).parent / "data"
 #: The blocks the route's points stand 30 mm off: the origin's on "base", the insertion's on "arm".

@@ -30,7 +30,7 @@ PERCENTILE = 90
 
 def vtp_points(path: Path) -> np.ndarray:
     """Vertices of an OpenSim .vtp mesh (pamkin's reader)."""
-    from pamkin.vtp import read_vtp
+    from pamkin.opensim.vtp import read_vtp
 
     return np.asarray(read_vtp(path).vertices, dtype=float)
 

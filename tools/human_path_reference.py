@@ -28,11 +28,11 @@ from pathlib import Path
 import numpy as np
 
 import pamkin
-from pamkin import festo
-from pamkin.audit import random_poses
-from pamkin.design import load_design
-from pamkin.robot import robot_skeleton
-from pamkin.rom import load_rom
+from pamkin.robot import festo
+from pamkin.audit.measure import random_poses
+from pamkin.robot.design import load_design
+from pamkin.robot.biped import robot_skeleton
+from pamkin.human.rom import load_rom
 
 PRESSURE = 620e3
 MARGIN = 0.005

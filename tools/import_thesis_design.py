@@ -34,11 +34,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 SHARED = ROOT.parent / "shared" / "bipedal-robot"
 
-from pamkin.design import THESIS_DESIGN, design_from_dict, save_design  # noqa: E402
-from pamkin.groups import load_groups  # noqa: E402
-from pamkin.osim import MovingPathPoint, function_to_dict  # noqa: E402
-from pamkin.rom import load_rom  # noqa: E402
-from pamkin.sizing import SizingFallbackWarning, thesis_size  # noqa: E402
+from pamkin.robot.design import THESIS_DESIGN, design_from_dict, save_design  # noqa: E402
+from pamkin.human.groups import load_groups  # noqa: E402
+from pamkin.opensim.model_file import MovingPathPoint, function_to_dict  # noqa: E402
+from pamkin.human.rom import load_rom  # noqa: E402
+from pamkin.robot.sizing import SizingFallbackWarning, thesis_size  # noqa: E402
 
 FRAMES = {"pelvis": "pelvis", "femur": "femur_r", "tibia": "tibia_r", "calcn": "calcn_r", "toes": "toes_r",
           "torso": "torso"}
@@ -59,7 +59,7 @@ def moving_patella(model, muscle: str, z: float) -> dict:
 
 def build() -> dict:
     import pamkin
-    from pamkin.robot import PamRobot
+    from pamkin.robot.biped import PamRobot
 
     model = pamkin.gait2392()
     thesis = json.loads((SHARED / "thesis_robot_pams_27.json").read_text())

@@ -70,7 +70,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from pamkin.design import THESIS_DESIGN  # noqa: E402
+from pamkin.robot.design import THESIS_DESIGN  # noqa: E402
 
 OUT = ROOT / "robot" / "data" / "split_gluteal_design.yaml"
 OUT_V2 = ROOT / "robot" / "data" / "v2_seed_design.yaml"
@@ -85,7 +85,7 @@ RESEED = ((6, "sar_r", False), (8, "rect_fem_r", True), (9, "grac_r", False), (1
 #: muscle's origin (its first path point, on the muscle's own body) as its first point; the rest of the route
 #: stays. Psoas: the thesis anchored it on the torso (to act about the back joint as well), but Gait2392's
 #: psoas_r starts on the pelvis and has no lumbar moment, so the robot's lumbar torque could only be an error
-#: (the default design's worst, 0.26 of the hip peak at stop 28). The thesis's torso point lies 0.22 mm from
+#: (the default design's worst, 0.26 of the hip peak at 0.1.0-dev). The thesis's torso point lies 0.22 mm from
 #: psoas_r's origin at the neutral pose: the route is the same there, only its body changes.
 ORIGIN_ON_MUSCLE_BODY = ((27, "psoas_r"),)
 #: Coordinates of the grid whose longest route length sizes a re-seeded PAM, and points per axis.
@@ -165,7 +165,7 @@ def _seed_route(human, st, source: str, fit: float, tail: tuple = ()) -> tuple[l
     dropped: they need a wrapping contact the robot does not have), then the design-file points ``tail``
     (rectus femoris: the thesis's patella point), and the resting length that spans the route at its
     longest over the states ``st`` less both fittings [m]."""
-    from pamkin.osim import PathPoint
+    from pamkin.opensim.model_file import PathPoint
 
     m = next(m for m in human.osim.muscles if m.name == source)
     fixed = [PathPoint(f"p{i + 1}", p.body, tuple(float(v) for v in p.location))
@@ -178,8 +178,8 @@ def _seed_route(human, st, source: str, fit: float, tail: tuple = ()) -> tuple[l
 def _route_rest(human, st, points: list[dict], fit: float) -> float:
     """Resting length that spans design-file route ``points`` at its longest over the states ``st`` less
     both fittings ``fit`` [m]."""
-    from pamkin.osim import point_from_dict
-    from pamkin.paths import PathSet
+    from pamkin.opensim.model_file import point_from_dict
+    from pamkin.human.paths import PathSet
 
     L = PathSet(human.kinematics, ["route"], [[point_from_dict(p) for p in points]]).evaluate(st).lengths[:, 0]
     rest = round(float(L.max()) - 2 * fit, 4)
@@ -188,8 +188,8 @@ def _route_rest(human, st, points: list[dict], fit: float) -> float:
 
 
 def _text(data: dict, out: Path, header: str) -> str:
-    """The design file ``out`` would hold for ``data`` (validated by pamkin.design)."""
-    from pamkin.design import design_from_dict, save_design
+    """The design file ``out`` would hold for ``data`` (validated by pamkin.robot.design)."""
+    from pamkin.robot.design import design_from_dict, save_design
 
     design = design_from_dict(data, str(out))
     tmp = out.with_suffix(".tmp.yaml")

@@ -43,7 +43,7 @@ from opensim_ref import SHARED, opensim_reference  # noqa: E402
 
 import pamkin  # noqa: E402
 from pamkin.errors import EquilibriumWarning, PamkinError  # noqa: E402
-from pamkin.osim import SkippedComponentsWarning  # noqa: E402
+from pamkin.opensim.model_file import SkippedComponentsWarning  # noqa: E402
 
 MODELS = SHARED / "opensim-models" / "Models"
 GAIT = SHARED / "opensim-models" / "Gait2392_Simbody"

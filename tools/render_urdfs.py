@@ -13,8 +13,8 @@ import argparse
 from pathlib import Path
 
 import pamkin
-from pamkin.meshes import render_urdf, urdf_configuration
-from pamkin.urdf_build import GAIT2392_URDF, ROBOT_URDF
+from pamkin.human.meshes import render_urdf, urdf_configuration
+from pamkin.human.urdf import GAIT2392_URDF, ROBOT_URDF
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._resources import DEFAULT_OSIM  # re-exported: pamkin.cli.DEFAULT_OSIM
-from ..errors import PamkinError
+from pamkin._resources import DEFAULT_OSIM  # re-exported: pamkin.cli.DEFAULT_OSIM
+from pamkin.errors import PamkinError
 
 
 def _load(osim: str | None):
@@ -26,7 +26,7 @@ def _load(osim: str | None):
 
 
 def cmd_urdf(args: argparse.Namespace) -> int:
-    from ..urdf_build import build_gait2392  # noqa: PLC0415
+    from pamkin.human.urdf import build_gait2392  # noqa: PLC0415
 
     osim = Path(args.osim) if args.osim else DEFAULT_OSIM
     files = build_gait2392(osim, check=args.check, geometry_dir=args.geometry)
@@ -92,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Import OpenSim's Gait2392 .osim, write the project data file "
                                    "robot/data/gait2392.yaml and the bone meshes urdf/meshes/*.stl (from the "
                                    "model's .vtp files, decimated) and render urdf/gait2392.urdf and the robot's "
-                                   "urdf/pam_biped.urdf (robot/data/pam_biped.yaml design) with xacro. Needs the "
+                                   "urdf/pam_biped.urdf (robot/data/thesis_design.yaml design) with xacro. Needs the "
                                    "OpenSim model files (not part of an installed pamkin).")
     s.add_argument("--osim", metavar="FILE", help=f"the .osim file (default: {DEFAULT_OSIM})")
     s.add_argument("--geometry", metavar="DIR",
@@ -110,28 +110,30 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--json", action="store_true", help="machine-readable output, SI units (default: a table)")
     s.set_defaults(func=cmd_info)
 
-    from . import robot as cli_robot, torques as cli_torques, visual as cli_visual  # noqa: PLC0415
+    from pamkin.cli import robot as cli_robot  # noqa: PLC0415
+    from pamkin.cli import torques as cli_torques
+    from pamkin.cli import visual as cli_visual
 
     cli_torques.add_parsers(sub)
     cli_robot.add_parsers(sub)
-    from . import optimize as cli_optimize  # noqa: PLC0415
+    from pamkin.cli import optimize as cli_optimize  # noqa: PLC0415
 
     cli_optimize.add_parsers(sub)
-    from . import export as cli_export  # noqa: PLC0415
+    from pamkin.cli import export as cli_export  # noqa: PLC0415
 
     cli_export.add_parsers(sub)
     cli_visual.add_parsers(sub)
-    from . import gait as cli_gait  # noqa: PLC0415
+    from pamkin.cli import gait as cli_gait  # noqa: PLC0415
 
     cli_gait.add_parsers(sub)
-    from . import audit as cli_audit  # noqa: PLC0415
+    from pamkin.cli import audit as cli_audit  # noqa: PLC0415
 
     cli_audit.add_parsers(sub)
     return p
 
 
 def _version() -> str:
-    from .. import __version__  # noqa: PLC0415
+    from pamkin import __version__  # noqa: PLC0415
 
     return __version__
 

@@ -8,7 +8,7 @@ import sys
 
 
 def add_parsers(sub) -> None:
-    from ..audit import GAIT_IK, LIMITS_FILE  # noqa: PLC0415
+    from pamkin.audit.measure import GAIT_IK, LIMITS_FILE  # noqa: PLC0415
 
     s = sub.add_parser(
         "audit", help="measure what a design is really worth: held-out poses, every coordinate, bones, buildability",
@@ -23,7 +23,7 @@ def add_parsers(sub) -> None:
                     f"(limits: {LIMITS_FILE}), 2 on bad input.")
     s.add_argument("design", nargs="?", default=None,
                    help="design file, a `pamkin optimize` run folder, 'thesis', 'split_gluteal' or 'v2_seed' (default: the robot's design "
-                        "robot/data/pam_biped.yaml)")
+                        "robot/data/thesis_design.yaml)")
     s.add_argument("--json", action="store_true", help="print one JSON object (pams, summary, criteria) instead of the scorecard (default: the scorecard)")
     s.add_argument("--out", help="folder for audit.json, scorecard.txt, criteria.png and view.html (default: write nothing)")
     s.add_argument("--quick", action="store_true",
@@ -48,10 +48,11 @@ def add_parsers(sub) -> None:
 def cmd_audit(args: argparse.Namespace) -> int:
     from pathlib import Path  # noqa: PLC0415
 
-    from ..audit import AuditOptions, audit_design, load_limits  # noqa: PLC0415
-    from ..audit_report import audit_view, plot_criteria, scorecard_text  # noqa: PLC0415
-    from ..errors import ConfigurationError  # noqa: PLC0415
-    from ..urdf_build import atomic_write  # noqa: PLC0415
+    from pamkin.audit.measure import AuditOptions, audit_design, load_limits  # noqa: PLC0415
+    from pamkin.audit.scorecard import plot_criteria, scorecard_text  # noqa: PLC0415
+    from pamkin.errors import ConfigurationError  # noqa: PLC0415
+    from pamkin.human.urdf import atomic_write  # noqa: PLC0415
+    from pamkin.viz.audit_page import audit_view  # noqa: PLC0415
 
     if args.random is not None and args.random < 1:
         raise ConfigurationError(f"--random must be >= 1, got {args.random}")
@@ -77,7 +78,7 @@ def cmd_audit(args: argparse.Namespace) -> int:
         written += [out / "audit.json", out / "scorecard.txt", plot_criteria(res, out / "criteria.png"),
                     audit_view(res, out / "view.html", args.geometry)]
         if args.screenshot:
-            from ..view import screenshot  # noqa: PLC0415
+            from pamkin.viz.meshcat_view import screenshot  # noqa: PLC0415
 
             written.append(screenshot(out / "view.html", out / "view.png"))
     if args.json:

@@ -18,7 +18,7 @@ def add_parsers(sub) -> None:
                     "adduction limit as its envelope). Point OpenSim at a Geometry folder to see the bones.")
     s.add_argument("design", metavar="DESIGN",
                    help="a design file, 'thesis' (robot/data/thesis_design.yaml) or 'robot' "
-                        "(robot/data/pam_biped.yaml)")
+                        "(robot/data/thesis_design.yaml)")
     s.add_argument("--out", metavar="FILE", help="output .osim (default: <design name>.osim in the current folder)")
     s.add_argument("--rom", metavar="NAME", help="range of motion in robot/data/rom.yaml for the coordinate "
                                                  "ranges (default: the design's rom)")
@@ -26,10 +26,10 @@ def add_parsers(sub) -> None:
 
 
 def cmd_export_osim(args: argparse.Namespace) -> int:
-    from ..design import ROBOT_DESIGN, load_design  # noqa: PLC0415
-    from ..osim_export import design_to_osim  # noqa: PLC0415
-    from ..rom import load_rom  # noqa: PLC0415
-    from ..urdf_build import GAIT2392_DATA, load_model_data  # noqa: PLC0415
+    from pamkin.human.rom import load_rom  # noqa: PLC0415
+    from pamkin.human.urdf import GAIT2392_DATA, load_model_data  # noqa: PLC0415
+    from pamkin.robot.design import ROBOT_DESIGN, load_design  # noqa: PLC0415
+    from pamkin.robot.osim_export import design_to_osim  # noqa: PLC0415
 
     skeleton = load_model_data(GAIT2392_DATA)
     src = ROBOT_DESIGN if args.design == "robot" else args.design

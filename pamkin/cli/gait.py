@@ -8,7 +8,7 @@ import sys
 
 
 def add_parsers(sub) -> None:
-    from ..gait import DEFAULT_GRF, DEFAULT_ID, DEFAULT_IK  # noqa: PLC0415
+    from pamkin.gait.plan import DEFAULT_GRF, DEFAULT_ID, DEFAULT_IK  # noqa: PLC0415
 
     s = sub.add_parser(
         "gait", help="can the robot walk like the human? PAM pressures reproducing a walking trial's moments",
@@ -23,7 +23,7 @@ def add_parsers(sub) -> None:
                     "scaled subject01 (about 72 kg), used as given.")
     s.add_argument("design", nargs="?", default=None,
                    help="design file, a `pamkin optimize` run folder, 'thesis', 'split_gluteal' or 'v2_seed' (default: the robot's design "
-                        "robot/data/pam_biped.yaml)")
+                        "robot/data/thesis_design.yaml)")
     s.add_argument("--ik", default=str(DEFAULT_IK), help="IK angles .mot (default: the shared subject01 trial)")
     s.add_argument("--id", default=str(DEFAULT_ID), help="ID moments .sto (default: the shared subject01 trial)")
     s.add_argument("--grf", default=str(DEFAULT_GRF),
@@ -39,8 +39,8 @@ def add_parsers(sub) -> None:
 
 
 def cmd_gait(args: argparse.Namespace) -> int:
-    from ..errors import ParameterError  # noqa: PLC0415
-    from ..gait import gait_plan, write_outputs  # noqa: PLC0415
+    from pamkin.errors import ParameterError  # noqa: PLC0415
+    from pamkin.gait.plan import gait_plan, write_outputs  # noqa: PLC0415
 
     if not 0 < args.tolerance < 100:
         raise ParameterError(f"--tolerance must be a percentage in (0, 100), got {args.tolerance}")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -68,16 +69,25 @@ def add_parsers(sub) -> None:
                     "examples/reference_unbuildable.toml and reference_bone_only.toml are references (the fit "
                     "without buildability limits; without the one-segment stage). Writes a run folder "
                     "(design.yaml, summary.json, log.txt, before_after.png) and audits the result next to "
-                    "the thesis design (pamkin audit --quick); --apply also writes the design into "
-                    "robot/data/pam_biped.yaml and regenerates urdf/pam_biped.urdf (atomically; only when "
-                    "every actuator is feasible).")
+                    "the thesis design (pamkin audit --quick); --apply FILE also writes the design to FILE and its "
+                    "URDF beside it (atomically; only when every actuator is feasible; never into the installed "
+                    "package). The run is a declared list of stages (pamkin.optimize.pipeline.STAGES); each "
+                    "finished per-actuator solve is stored in the run folder as it completes, so --resume RUN "
+                    "continues a killed run; --scheduler sends the solves to a Dask cluster.")
     s.add_argument("config", nargs="?", metavar="CONFIG",
                    help="TOML run description; every key optional, documented with its default in "
                         "optimize/config.py (pamkin.optimize.config) (default: all defaults)")
     s.add_argument("--out", metavar="DIR", help="run folder (default: runs/<date-time> in the current folder)")
-    s.add_argument("--apply", action="store_true",
-                   help="also write the result into robot/data/pam_biped.yaml and urdf/pam_biped.urdf "
-                        "(default: off; only when every actuator is feasible)")
+    s.add_argument("--apply", metavar="FILE",
+                   help="also write the resulting design to FILE (YAML) and its URDF beside it (FILE with .urdf); "
+                        "only when every actuator is feasible; use it with --design FILE (default: not written)")
+    s.add_argument("--resume", metavar="RUN",
+                   help="continue the killed run in folder RUN with its own config: finished actuator solves are "
+                        "read back from RUN/tasks, the rest solved (CONFIG and the overriding options are not "
+                        "allowed with it; default: a new run)")
+    s.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the per-actuator solves on a Dask distributed cluster, e.g. tcp://host:8786 "
+                        "(needs dask[distributed]; default: --workers local processes)")
     s.add_argument("--actuators", metavar="IDS",
                    help="comma-separated actuator ids, e.g. 4,5,6 (overrides the config; default: all of the seed design)")
     s.add_argument("--workers", type=positive_int, metavar="N",
@@ -99,12 +109,27 @@ def add_parsers(sub) -> None:
 
 
 def cmd_optimize(args: argparse.Namespace) -> int:
+    from pamkin.errors import ConfigurationError  # noqa: PLC0415
     from pamkin.optimize.config import load_config  # noqa: PLC0415
-    from pamkin.optimize.run import InfeasibleError, run  # noqa: PLC0415
+    from pamkin.optimize.config import config_from_dict  # noqa: PLC0415
+    from pamkin.optimize.executor import make_executor  # noqa: PLC0415
+    from pamkin.optimize.pipeline import run  # noqa: PLC0415
+    from pamkin.optimize.results import InfeasibleError  # noqa: PLC0415
 
-    from ..errors import ConfigurationError  # noqa: PLC0415
-
-    cfg = load_config(args.config)
+    if args.resume:
+        given = [o for o, v in (("CONFIG", args.config), ("--out", args.out), ("--actuators", args.actuators),
+                                ("--warm-start", args.warm_start), ("--design", args.design)) if v]
+        if given:
+            raise ConfigurationError(f"--resume runs with the run's own config: {', '.join(given)} not allowed with it")
+        saved = Path(args.resume) / "config.json"
+        try:
+            cfg = config_from_dict(json.loads(saved.read_text()), str(saved))
+        except FileNotFoundError:
+            raise ConfigurationError(f"--resume {args.resume}: not a run folder (no config.json)") from None
+        except ValueError as e:
+            raise ConfigurationError(f"{saved}: not a run's config ({e})") from None
+    else:
+        cfg = load_config(args.config)
     if args.actuators:
         try:
             cfg.actuators = [int(a) for a in args.actuators.split(",")]
@@ -117,15 +142,20 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     if args.design:
         cfg.design = args.design
     cfg.validate()
-    out = Path(args.out) if args.out else Path("runs") / time.strftime("%Y%m%d-%H%M%S")
+    out = Path(args.resume or args.out or Path("runs") / time.strftime("%Y%m%d-%H%M%S"))
     stream = open("/dev/null", "w") if args.quiet else sys.stderr  # noqa: SIM115
     audit = None if args.no_audit else BackgroundAudit()
     try:
-        summary = run(cfg, out, apply=args.apply, stream=stream, on_design=audit.start if audit else None)
+        executor = make_executor(cfg.workers, args.scheduler)
+        try:
+            summary = run(cfg, out, apply=args.apply, stream=stream, on_design=audit.start if audit else None,
+                          executor=executor, resume=bool(args.resume))
+        finally:
+            executor.close()
     except InfeasibleError as e:
         if audit is not None:
             audit.close()
-        print(f"pamkin optimize: {e}\nnothing was written into the robot data; see {out}", file=sys.stderr)
+        print(f"pamkin optimize: {e}\nno design file was written; see {out}", file=sys.stderr)
         return 3
     except BaseException:
         if audit is not None:
@@ -138,14 +168,14 @@ def cmd_optimize(args: argparse.Namespace) -> int:
 
 class BackgroundAudit:
     """``pamkin audit --quick`` of a run folder's design in a separate process, started as soon as the
-    run has written ``design.yaml`` (:func:`pamkin.optimize.run.run`'s ``on_design``), so that it runs on
+    run has written ``design.yaml`` (:func:`pamkin.optimize.pipeline.run`'s ``on_design``), so that it runs on
     the second core beside the run's own check and plot. The process is spawned, not forked (a process
     that has used OpenMP, as libigl's queries do, must not fork), and has one BLAS thread; its result is the
-    same as :func:`pamkin.audit.audit_design` here (the audit is deterministic). Should that process die,
+    same as :func:`pamkin.audit.measure.audit_design` here (the audit is deterministic). Should that process die,
     the audit is computed here instead.
 
     Args:
-        options: The audit's options (default: :meth:`pamkin.audit.AuditOptions.quick`).
+        options: The audit's options (default: :meth:`pamkin.audit.measure.AuditOptions.quick`).
     """
 
     def __init__(self, options=None) -> None:
@@ -154,7 +184,7 @@ class BackgroundAudit:
         self._job = None
 
     def _options(self):
-        from ..audit import AuditOptions  # noqa: PLC0415
+        from pamkin.audit.measure import AuditOptions  # noqa: PLC0415
 
         return self.options if self.options is not None else AuditOptions.quick()
 
@@ -162,14 +192,13 @@ class BackgroundAudit:
         import multiprocessing as mp  # noqa: PLC0415
         from concurrent.futures import ProcessPoolExecutor  # noqa: PLC0415
 
-        from pamkin.optimize.run import _limit_worker  # noqa: PLC0415
-
-        from ..audit import audit_design  # noqa: PLC0415
+        from pamkin.audit.measure import audit_design  # noqa: PLC0415
+        from pamkin.optimize.executor import _worker_start  # noqa: PLC0415
 
         self.close()
         try:
             self._pool = ProcessPoolExecutor(1, mp_context=mp.get_context("spawn"),
-                                             initializer=_limit_worker)
+                                             initializer=_worker_start)
             self._job = self._pool.submit(audit_design, Path(out_dir), options=self._options())
         except (OSError, RuntimeError):       # no second process here: result() audits in this one
             self.close()
@@ -179,7 +208,7 @@ class BackgroundAudit:
         (or its process died). Raises what the audit raises."""
         from concurrent.futures.process import BrokenProcessPool  # noqa: PLC0415
 
-        from ..audit import audit_design  # noqa: PLC0415
+        from pamkin.audit.measure import audit_design  # noqa: PLC0415
 
         job = self._job
         try:
@@ -209,10 +238,9 @@ def audit_side_by_side(out: Path, stream, audit: BackgroundAudit | None = None) 
     ``scorecard.txt``, ``audit_thesis.json``)."""
     import json  # noqa: PLC0415
 
-    from ..audit_report import scorecard_text, side_by_side  # noqa: PLC0415
-    from ..urdf_build import atomic_write  # noqa: PLC0415
-
-    from ..errors import PamkinError  # noqa: PLC0415
+    from pamkin.audit.scorecard import scorecard_text, side_by_side  # noqa: PLC0415
+    from pamkin.errors import PamkinError  # noqa: PLC0415
+    from pamkin.human.urdf import atomic_write  # noqa: PLC0415
 
     print("auditing the result and the thesis design (pamkin audit --quick) ...", file=stream, flush=True)
     try:
@@ -239,9 +267,8 @@ def _audit_inputs_key(options) -> str:
     import hashlib  # noqa: PLC0415
 
     import pamkin  # noqa: PLC0415
-
-    from .._resources import PACKAGE_DIR, ROBOT_DIR, SHARED_DIR, URDF_DIR  # noqa: PLC0415
-    from ..bones import find_geometry_dir  # noqa: PLC0415
+    from pamkin._resources import PACKAGE_DIR, ROBOT_DIR, SHARED_DIR, URDF_DIR  # noqa: PLC0415
+    from pamkin.human.bones import find_geometry_dir  # noqa: PLC0415
 
     h = hashlib.sha256(repr(options).encode())
     for f in sorted(PACKAGE_DIR.rglob("*.py")) + sorted((ROBOT_DIR / "data").glob("*.yaml")):
@@ -265,9 +292,9 @@ def thesis_quick_audit():
     first reuses it (~7 s); any change of code, data or options computes it again."""
     import pickle  # noqa: PLC0415
 
-    from .._resources import cache_dir  # noqa: PLC0415
-    from ..audit import AuditOptions, audit_design  # noqa: PLC0415
-    from ..urdf_build import atomic_write  # noqa: PLC0415
+    from pamkin._resources import cache_dir  # noqa: PLC0415
+    from pamkin.audit.measure import AuditOptions, audit_design  # noqa: PLC0415
+    from pamkin.human.urdf import atomic_write  # noqa: PLC0415
 
     options = AuditOptions.quick()
     path = cache_dir() / "audit" / f"thesis_quick_{_audit_inputs_key(options)}.pickle"
@@ -287,7 +314,7 @@ def thesis_quick_audit():
 
 LEGEND = """\
 Columns: id = actuator; PAM = its name; d x n = Festo diameter [mm] x PAMs in parallel (/k: on a k:1 pulley
-block, pamkin.design transmission); rest = resting
+block, pamkin.robot.design transmission); rest = resting
 length [m]; tendon = artificial tendon [m]; NRMSE = RMS(robot - human torque) / human peak over the
 primary coordinate's 1-D sweep (81 samples, independent numpy check; the progress lines' "fit NRMSE"
 is the optimiser's own, on its coarser samples), before = seed design, after = optimised; 2-D = NRMSE
@@ -326,11 +353,11 @@ def print_summary(summary: dict, out: Path, audit_text: str | None = None) -> No
           f"all clear of bone: {summary['all_clear_bone']}"
           + (f"; undefined NRMSE (no human torque about the primary coordinate, counted as infinite): "
              f"{', '.join(map(str, summary['undefined_nrmse']))}" if summary.get("undefined_nrmse") else "")
-          + ("; applied to robot/data/pam_biped.yaml" if summary.get("applied") else ""))
+          + (f"; written to {summary['applied']}" if summary.get("applied") else ""))
     if audit_text:
         print(audit_text, end="")
     if summary.get("applied"):
-        print("Next: pamkin compare    (the robot's design now is the optimised one)")
+        print(f"Next: pamkin compare --design {summary['applied']}")
     else:
         print(f"Next: pamkin compare --design {out}    (or pamkin report --design {out}; "
-              "add --apply to pamkin optimize to make it the robot's design)")
+              "add --apply FILE to pamkin optimize to keep it as a design file)")

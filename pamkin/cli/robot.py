@@ -19,7 +19,7 @@ def add_parsers(sub) -> None:
                     "path, pretension within Festo's limit at the longest, fittings and a non-negative "
                     "tendon) and reports infeasible PAMs; --method design prints the design file's sizes.")
     s.add_argument("--design", help="design file, or 'thesis' for the thesis design robot/data/thesis_design.yaml "
-                                    "(default: the robot's design robot/data/pam_biped.yaml)")
+                                    "(default: the robot's design robot/data/thesis_design.yaml)")
     s.add_argument("--method", choices=("thesis", "constrained", "design"), default="thesis",
                    help="thesis: the thesis Size() algorithm; constrained: stated and checked limits; design: the "
                         "design file's own sizes (default: thesis)")
@@ -34,7 +34,7 @@ def add_parsers(sub) -> None:
                     "coordinate (others 0) and 2-D grids primary x secondary; then thesis groups and joint "
                     "capacity envelopes.")
     s.add_argument("--design", help="design file, 'thesis' (the thesis design), 'split_gluteal' or 'v2_seed' (default: the robot's "
-                                    "design robot/data/pam_biped.yaml)")
+                                    "design robot/data/thesis_design.yaml)")
     s.add_argument("--side", choices=("r", "l"), default="r", help="leg side (default: r)")
     s.add_argument("-n", type=int, default=41, help="samples of the 1-D sweeps (default: 41)")
     s.add_argument("--json", action="store_true", help="machine-readable output (default: a table)")
@@ -42,17 +42,16 @@ def add_parsers(sub) -> None:
 
 
 def _robot(design_path: str | None):
-    from ..robot import design_robot  # noqa: PLC0415
+    from pamkin.robot.biped import design_robot  # noqa: PLC0415
 
     return design_robot(design_path)
 
 
 def sizing_rows(robot, method: str) -> list[dict]:
     """One row per PAM (right side) with the sizing of ``method``."""
-    from ..rom import load_rom  # noqa: PLC0415
-    from ..sizing import SizingFallbackWarning, size_pam, thesis_size  # noqa: PLC0415
-
     import pamkin  # noqa: PLC0415
+    from pamkin.human.rom import load_rom  # noqa: PLC0415
+    from pamkin.robot.sizing import SizingFallbackWarning, size_pam, thesis_size  # noqa: PLC0415
 
     human = pamkin.gait2392()
     rom = load_rom(robot.design.rom, "r")
@@ -121,7 +120,13 @@ def cmd_size(args: argparse.Namespace) -> int:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     import pamkin  # noqa: PLC0415
-    from ..compare import compare_design, compare_groups, compare_joints, finite_or_none, summary_line  # noqa: PLC0415
+    from pamkin.audit.compare import (  # noqa: PLC0415
+        compare_design,
+        compare_groups,
+        compare_joints,
+        finite_or_none,
+        summary_line,
+    )
 
     robot = _robot(args.design)
     human = pamkin.gait2392()

@@ -31,10 +31,10 @@ def add_parsers(sub) -> None:
 
 
 def cmd_torques(args: argparse.Namespace) -> int:
-    from . import _load  # noqa: PLC0415
-    from ..errors import ConfigurationError  # noqa: PLC0415
-    from ..groups import load_groups  # noqa: PLC0415
-    from ..rom import load_rom  # noqa: PLC0415
+    from pamkin.cli import _load  # noqa: PLC0415
+    from pamkin.errors import ConfigurationError  # noqa: PLC0415
+    from pamkin.human.groups import load_groups  # noqa: PLC0415
+    from pamkin.human.rom import load_rom  # noqa: PLC0415
 
     model = _load(args.osim)
     rom = load_rom(args.rom, args.side)

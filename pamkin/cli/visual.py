@@ -9,11 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigurationError
+from pamkin.errors import ConfigurationError
 
 
 def add_parsers(sub) -> None:
-    from ..view import DEFAULT_GEOMETRY  # noqa: PLC0415
+    from pamkin.viz.meshcat_view import DEFAULT_GEOMETRY  # noqa: PLC0415
 
     s = sub.add_parser(
         "view", help="meshcat page: skeleton, human muscles and robot PAMs (optionally a range-of-motion sweep)",
@@ -25,7 +25,7 @@ def add_parsers(sub) -> None:
                     "(forth and back); other coordinates are 0 unless set with --set.")
     s.add_argument("--html", required=True, metavar="FILE", help="the page to write")
     s.add_argument("--design", help="design file, 'thesis' (the thesis design), 'split_gluteal' or 'v2_seed' (default: the robot's design "
-                                    "robot/data/pam_biped.yaml)")
+                                    "robot/data/thesis_design.yaml)")
     s.add_argument("--geometry", metavar="DIR",
                    help=f"folder of the .vtp bone meshes (default: {DEFAULT_GEOMETRY} if it exists, else "
                         "simple shapes); an explicit folder that does not exist is an error")
@@ -55,7 +55,7 @@ def add_parsers(sub) -> None:
                     "coordinate with the dead zones (PAM strain outside Festo's range) shaded. Range of motion "
                     "of the design, other coordinates 0. Writes PNG files and index.html into --out.")
     s.add_argument("--design", help="design file, 'thesis' (the thesis design), 'split_gluteal' or 'v2_seed' (default: the robot's design "
-                                    "robot/data/pam_biped.yaml)")
+                                    "robot/data/thesis_design.yaml)")
     s.add_argument("--out", default="pamkin-report", metavar="DIR", help="output folder (default: pamkin-report)")
     s.add_argument("--side", choices=("r", "l"), default="r", help="leg side (default: r)")
     s.add_argument("-n", type=int, default=25, help="grid points per coordinate of the surfaces (default 25)")
@@ -84,10 +84,9 @@ def _configuration(model, items: list[str]) -> np.ndarray:
 
 def cmd_view(args: argparse.Namespace) -> int:
     import pamkin  # noqa: PLC0415
-
-    from .robot import _robot  # noqa: PLC0415
-    from ..view import DEFAULT_GEOMETRY, build_view, screenshot  # noqa: PLC0415
-    from ..vtp import body_meshes  # noqa: PLC0415
+    from pamkin.cli.robot import _robot  # noqa: PLC0415
+    from pamkin.opensim.vtp import body_meshes  # noqa: PLC0415
+    from pamkin.viz.meshcat_view import DEFAULT_GEOMETRY, build_view, screenshot  # noqa: PLC0415
 
     try:
         width, height = (int(x) for x in args.size.lower().split("x"))
@@ -118,9 +117,8 @@ def cmd_view(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     import pamkin  # noqa: PLC0415
-
-    from .robot import _robot  # noqa: PLC0415
-    from ..report import torque_report  # noqa: PLC0415
+    from pamkin.cli.robot import _robot  # noqa: PLC0415
+    from pamkin.viz.torque_report import torque_report  # noqa: PLC0415
 
     pams = None
     if args.pams:
