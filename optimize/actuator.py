@@ -116,7 +116,7 @@ def solve_actuator(ctx: RunContext, task: tuple[int, int]) -> ActuatorResult:
         length >= Festo's shortest, or the fixed one) scores more than a feasible try with at most n PAMs."""
         if not PRUNE_DOMINATED:
             return False
-        low = mass_penalty(d, n, pam.resting_length_m if cfg.fix_lengths else festo.nominal_length_range(d)[0])
+        low = mass_penalty(d, n, pam.resting_length_m if cfg.limits.fix_lengths else festo.nominal_length_range(d)[0])
         by = [key for key, (sc, _, _) in candidates.items() if key[1] <= n and sc < low]
         if by:
             skipped.append(f"{d} mm x{n} (its mass alone scores {low:.4g}, more than {by[0][0]} mm x{by[0][1]})")
@@ -139,36 +139,36 @@ def solve_actuator(ctx: RunContext, task: tuple[int, int]) -> ActuatorResult:
     # fit that the rounds would have to pull out of bone again.
     # A warm PAM that sits on one straight segment keeps it: its problem has the one-segment rows there.
     warm_ok = False
-    if pam.id in ctx.warm_ids and pam.diameter_mm in cfg.diameters_mm \
-            and pam.n_parallel <= cfg.max_parallel:
+    if pam.id in ctx.warm_ids and pam.diameter_mm in cfg.first_fit.diameters_mm \
+            and pam.n_parallel <= cfg.first_fit.max_parallel:
         warm = (pam.diameter_mm, pam.n_parallel, seed, pam.resting_length_m, pam.tendon_length_m)
         on = None
-        if cfg.mount and not cfg.one_segment_for(pam.id):
+        if cfg.mount.enabled and not cfg.one_segment_for(pam.id):
             from pamkin.optimize.mount import mounted_segment  # noqa: PLC0415
 
             p0 = problem(pam.diameter_mm)
             on = mounted_segment(p0, p0.initial_guess(seed, pam.resting_length_m, pam.tendon_length_m))
-        if cfg.bone_mesh:
+        if cfg.bone_rounds.enabled:
             warm_ok = attempt(*warm, "warm start (as given)", evaluate=True, mount=on).success
         if not warm_ok:
             warm_ok = attempt(*warm, "warm start", mount=on).success
     if not warm_ok:
         same_seed = (pam.diameter_mm, pam.n_parallel)
         results = {}
-        for d in cfg.diameters_mm:
+        for d in cfg.first_fit.diameters_mm:
             if dominated(d, 1):
                 continue
             warm = (pam.resting_length_m, pam.tendon_length_m) if (d, 1) == same_seed else (None, None)
             results[(d, 1)] = attempt(d, 1, seed, *warm, "seed")
         optional = [name for name, on in (("one_segment", cfg.one_segment_for(pam.id)),
-                                          ("sensitivity", cfg.sensitivity_pct > 0)) if on]
+                                          ("sensitivity", cfg.limits.sensitivity_pct > 0)) if on]
         for k in range(1, len(optional) + 1):
             if any(s.success for s in results.values()):
                 break
             # the PAM cannot sit on one straight segment of this route (then, also not keep the sensitivity
             # limit) within the other limits: say so (``relaxed``), solve without them
             relaxed = frozenset(optional[:k])
-            for d in cfg.diameters_mm:
+            for d in cfg.first_fit.diameters_mm:
                 results[(d, 1)] = attempt(d, 1, seed, None, None, "seed", relaxed)
         feasible = {key: s for key, s in results.items() if s.success}
         if feasible and RETRY_CAPPED:
@@ -184,16 +184,16 @@ def solve_actuator(ctx: RunContext, task: tuple[int, int]) -> ActuatorResult:
         if feasible:
             d_best = min(feasible, key=lambda key: score(feasible[key]))[0]
             prev = feasible[(d_best, 1)]
-            for n in range(2, min(cfg.max_parallel, ctx.n_cap) + 1):
+            for n in range(2, min(cfg.first_fit.max_parallel, ctx.n_cap) + 1):
                 if dominated(d_best, n):
                     break
                 s = attempt(d_best, n, prev.points, prev.rest_length, prev.tendon_length, "seed", relaxed)
                 if not (s.success and score(s) < 0.95 * score(prev)):
                     break
                 prev = s
-        if best is not None and best.success and best.objective > cfg.multistart_threshold:
+        if best is not None and best.success and best.objective > cfg.first_fit.multistart_threshold:
             rng = np.random.default_rng(cfg.seed + 1000 * pam.id + seed_index)
-            for m in range(cfg.multistart):
+            for m in range(cfg.first_fit.multistart):
                 pts = [p + rng.uniform(-0.5, 0.5, 3) * r for p, r in zip(best.points, regions)]
                 attempt(best.diameter_mm, best.n_parallel, pts, None, None, f"perturbed {m + 1}", relaxed)
     assert best is not None
@@ -218,11 +218,11 @@ LIMIT_CHECK_ROUNDS = 2
 
 
 def bone_rounds(ctx: RunContext, prob, best, pam: Pam, cfg: RunConfig):
-    """The bone-mesh stage of a solved actuator (when ``cfg.bone_mesh``): (solution, bone info, its
+    """The bone-mesh stage of a solved actuator (when ``cfg.bone_rounds.enabled``): (solution, bone info, its
     :class:`~optimize.bone_cuts.BoneCuts` or None). A warm start taken as given (already through these rounds
     in its run) stays unless a round beats it, and where it keeps every strain and force limit at the held-out
     limit-check poses, also when the rounds' result ends over one of them (no deeper into bone)."""
-    if not (cfg.bone_mesh and best.success):
+    if not (cfg.bone_rounds.enabled and best.success):
         return best, {}, None
 
     q_bone, n_right = bone_check_poses(ctx.human, ctx.rom, pam, cfg.seed, crossed=prob.data.crossed)
@@ -256,8 +256,8 @@ def bone_rounds(ctx: RunContext, prob, best, pam: Pam, cfg: RunConfig):
         note(excess, "limits tightened before the bone rounds")
         tighten(prob, excess)
     warm = best.status == "given"
-    best, measure, info = bone_stage(prob, best, cuts, cfg.bone_rounds, lines, keep_start=warm)
-    if cfg.bone_seed_start and not warm and not (measure.violation() == 0.0 and best.objective <= SEED_START_SKIP):
+    best, measure, info = bone_stage(prob, best, cuts, cfg.bone_rounds.rounds, lines, keep_start=warm)
+    if cfg.bone_rounds.seed_start and not warm and not (measure.violation() == 0.0 and best.objective <= SEED_START_SKIP):
         best, measure, info = seed_start(prob, best, measure, info, cuts, cfg, lines)
     for _ in range(LIMIT_CHECK_ROUNDS - 1):
         excess = excess_of(best)
@@ -265,7 +265,7 @@ def bone_rounds(ctx: RunContext, prob, best, pam: Pam, cfg: RunConfig):
             break
         note(excess, "limits tightened, bone rounds again")
         tighten(prob, excess)
-        best, measure, more = bone_stage(prob, best, cuts, cfg.bone_rounds, lines)
+        best, measure, more = bone_stage(prob, best, cuts, cfg.bone_rounds.rounds, lines)
         info += more
     # attachment points against the other bones at many more poses: where one comes near, those poses
     # join the bone-check poses (right-leg poses, first) and the rounds run again
@@ -276,7 +276,7 @@ def bone_rounds(ctx: RunContext, prob, best, pam: Pam, cfg: RunConfig):
                      f"{N_POINT_CHECK} more random poses: added to the bone-check poses, bone rounds again")
         cuts = BoneCuts(pam, ctx.human, ctx.bones, np.vstack([extra, q_bone]), n_right + len(extra))
         cuts.detour_below = below
-        best, measure, more = bone_stage(prob, best, cuts, cfg.bone_rounds, lines)
+        best, measure, more = bone_stage(prob, best, cuts, cfg.bone_rounds.rounds, lines)
         info += more
     prob.lbg, prob.ubg = limits
     best, pushed, moved, outcome = push_out(prob, best, cuts)
@@ -307,7 +307,7 @@ def detour_below(pam: Pam, prob, sol, cfg: RunConfig) -> float:
     length the route's excursion at ``sol`` allows (its stroke over Festo's largest contraction plus the
     stretch limit, on the largest block the run may use) plus both fittings and the segment margin. Such
     segments are left to :func:`detour_pass` (0 without detours)."""
-    if not (cfg.detours and sol.success):
+    if not (cfg.detours.enabled and sol.success):
         return 0.0
     import casadi as ca  # noqa: PLC0415
     from pamkin.optimize.mount import BLOCKS  # noqa: PLC0415
@@ -315,10 +315,10 @@ def detour_below(pam: Pam, prob, sol, cfg: RunConfig) -> float:
 
     ci = [int(s) for s in prob.data.constraint_idx]
     L = np.array(ca.Function("L", [prob.z], [prob.L[0, ci]])(sol.z)).ravel()
-    k = max([prob.k, *(BLOCKS if cfg.mount and cfg.mount_blocks else ())])
-    stretch = cfg.pretension_scale * max(festo.max_pretension(d) for d in cfg.diameters_mm)
+    k = max([prob.k, *(BLOCKS if cfg.mount.enabled and cfg.mount.blocks else ())])
+    stretch = cfg.limits.pretension_scale * max(festo.max_pretension(d) for d in cfg.first_fit.diameters_mm)
     # the contraction limit is Festo's rated one at most (reach_bound); without it, no bound below 100 %
-    c = max(festo.max_contraction(d) for d in cfg.diameters_mm) if cfg.rated_force else 1.0
+    c = max(festo.max_contraction(d) for d in cfg.first_fit.diameters_mm) if cfg.limits.rated_force else 1.0
     least = float(np.ptp(L)) / (k * (c + stretch))
     return float(least + 2 * prob.data.fitting_length + SEGMENT_MARGIN)
 
@@ -335,7 +335,7 @@ def seed_start(prob, best, measure, info: list, cuts, cfg: RunConfig, lines: lis
     z[:3 * npt] = pulled.ravel()
     start = prob.evaluate(z, best.n_parallel)
     lines.append("  bone rounds from the seed route:")
-    s, m, more = bone_stage(prob, start, cuts, cfg.bone_rounds, lines)
+    s, m, more = bone_stage(prob, start, cuts, cfg.bone_rounds.rounds, lines)
     info = info + [{"start": "seed"}] + more
     if s.success and (not best.success or stage_key(m, s) < stage_key(measure, best)):
         lines.append(f"  kept the seed-route result (violation {1e3 * m.violation(0.0):.2f} mm, "
@@ -407,7 +407,7 @@ def finish_choice(ctx: RunContext, task: tuple) -> ActuatorResult:
             # ``keep``, a PAM on one straight segment keeps it (the problem has its one-segment rows, as a warm
             # start's), else the one-segment stage puts it on one again
             start, keep = more[1], len(more) > 2 and bool(more[2])
-            if keep and cfg.mount and not cfg.one_segment_for(pam.id):
+            if keep and cfg.mount.enabled and not cfg.one_segment_for(pam.id):
                 from pamkin.optimize.mount import mounted_segment  # noqa: PLC0415
 
                 on = mounted_segment(prob, np.asarray(z_start, float))
@@ -441,14 +441,14 @@ def block_start(prob, z: np.ndarray, k0: int, k: int, fitting_length: float) -> 
 
 
 def mount_actuator(ctx: RunContext, prob, best, pam: Pam, cfg: RunConfig, cuts=None, blocks: bool = True):
-    """The one-segment stage of a solved actuator (when ``cfg.mount``; :mod:`optimize.mount`): on its fixed
+    """The one-segment stage of a solved actuator (when ``cfg.mount.enabled``; :mod:`optimize.mount`): on its fixed
     route, and where that fails narrowly, with the bone rounds (``cuts``) and the PAM on the segment
     (:func:`optimize.mount.mount_rounds`), then on a pulley block (:func:`optimize.mount.mount_block`) unless
     ``blocks`` is False: an actuator whose warm start was kept keeps its warm size, transmission included
     (its run tried the blocks; the mass budget may have taken one off again, and a warm run would put it on
     again only to take it off). Returns (solution, its problem, mount info, direct), ``direct``
     the (solution, problem, mount info) before a pulley block where the stage put the PAM on one (else None)."""
-    if not (cfg.mount and best.success):
+    if not (cfg.mount.enabled and best.success):
         return best, prob, {}, None
     from pamkin.optimize.mount import (  # noqa: PLC0415
         BLOCK_REASONS,
@@ -461,7 +461,7 @@ def mount_actuator(ctx: RunContext, prob, best, pam: Pam, cfg: RunConfig, cuts=N
     def rule(already_failing: bool, still_passing: bool):
         return lambda a, b: ctx.failing_fit(list(prob.data.crossed or []), already_failing, still_passing)(a, b)
 
-    failing = rule(cfg.mount_failing, cfg.mount_passing) if cfg.mount_failing or cfg.mount_passing else None
+    failing = rule(cfg.mount.failing, cfg.mount.passing) if cfg.mount.failing or cfg.mount.passing else None
     blocked = frozenset(cuts.in_own_bone(np.array(best.points))) if cuts is not None else frozenset()
     best, info = mount_stage(prob, best, pam, cfg, ctx.human, ctx.rom, solution_pam, failing, blocked)
     if not info.get("mounted") and cuts is not None:
@@ -469,14 +469,14 @@ def mount_actuator(ctx: RunContext, prob, best, pam: Pam, cfg: RunConfig, cuts=N
                                         solution_pam, failing)
     direct = None
     if not info.get("mounted") and not blocks:
-        if cfg.mount_blocks and info.get("reason") in BLOCK_REASONS and prob.k == 1:
+        if cfg.mount.blocks and info.get("reason") in BLOCK_REASONS and prob.k == 1:
             info = dict(info, line=info["line"] + "; no pulley block tried (warm start: its transmission kept)")
     elif not info.get("mounted"):
         before = (best, prob, info)
         # on a block only mount_passing (the mounted PAM's own errors): mount_failing on blocks too, measured at
         # 0.1.0-dev, mounted tensor fasciae latae and internal oblique at a large fit cost and the run's later
         # passes (re-sizing, mass budget) moved other PAMs: 9 audit limits failed instead of 6
-        passing = rule(False, True) if cfg.mount_passing else None
+        passing = rule(False, True) if cfg.mount.passing else None
         best, prob, info = mount_block(prob, best, info, pam, cfg, ctx.human, ctx.rom, solution_pam,
                                        blocked, passing)
         if info.get("transmission", 1) > 1:
@@ -519,7 +519,7 @@ def clear_actuator(ctx: RunContext, k: int) -> ActuatorResult:
     cuts.set_obstacles(bodies, radius, mount)
     cuts.detour_below = detour_below(pam, prob, sol, cfg)       # as in the first pass's rounds
     lines = ["  PAM-PAM pass:"]
-    best, measure, info = bone_stage(prob, sol, cuts, cfg.bone_rounds, lines)
+    best, measure, info = bone_stage(prob, sol, cuts, cfg.bone_rounds.rounds, lines)
     bone = bone_info(cuts, sol, measure, info, first.bone.get("log", []) + lines, [p.name for p in pam.points])
     attempts = first.attempts + [{"diameter_mm": best.diameter_mm, "n_parallel": best.n_parallel,
                                   "start": "PAM-PAM pass", "status": best.status, "objective": best.objective,
@@ -617,7 +617,7 @@ def roller_actuator(ctx: RunContext, k: int) -> ActuatorResult:
             break
         # the bone-mesh rounds: points, segments and the straight pieces around the rollers
         cuts.rollers = dict(rollers)
-        sol1, _, _ = bone_stage(prob1, sol1, cuts, cfg.bone_rounds)
+        sol1, _, _ = bone_stage(prob1, sol1, cuts, cfg.bone_rounds.rounds)
         z, L_prev = sol1.z, prob1.lengths(sol1.z)
         pam1 = size_rollers(dataclasses.replace(solution_pam(data.pam, prob1.finalize(sol1)),
                                                 rollers=tuple(rol for _, rol in sorted(rollers.items()))),

@@ -1,4 +1,4 @@
-"""Attachment points on their bone, as smooth constraints of every solve (``[limits] bracket_fit``).
+"""Attachment points on their bone, as smooth constraints of every solve (``[bone_rounds] bracket_fit``).
 
 The bone-mesh rounds (:mod:`optimize.bone_cuts`) keep every body-fixed attachment point in the band
 ``POINT_MIN``..``POINT_MAX`` outside its own bone, linearised round by round from wherever the first fit

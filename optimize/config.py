@@ -1,377 +1,328 @@
-"""Run description of an attachment-point optimisation (TOML).
+"""Run description of an attachment-point optimisation (TOML), nested by stage.
 
-Example (every key optional; these are the defaults). The keys marked (v2) are the ingredients of an
-optimiser judged by ``pamkin audit`` (multi-joint training poses, the whole torque vector, Festo's rated
-force, a mass penalty, the real bone meshes, a unit budget); the default run uses the measured set of
-them (``pam_clearance`` stays off, ``one_segment`` is on only for ``one_segment_actuators``, and the
-``mount`` stage puts the other PAMs on one segment where their fit allows, README "Optimiser v2"). :data:`FAST_FIT` holds the
-earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes)::
+The TOML file and :class:`RunConfig` mirror each other one to one: top-level keys are fields of
+:class:`RunConfig`, every ``[section]`` is one of its section dataclasses (``[mount]`` is
+:attr:`RunConfig.mount`, a :class:`Mount`), every key a field of that section. Every key is optional; the
+defaults are the default run's. Each key is defined once, here: its type, default, range and description
+(the field's ``metadata``), from which :func:`config_reference_markdown` generates the reference page and
+:meth:`RunConfig.validate` checks a value. An unknown section or key, a wrong type or a value out of range is
+an error naming the file and the key (``pamkin optimize`` exits 2), before anything is solved.
 
-    design = "v2_seed"           # seed design file, run folder or keyword ("thesis", "split_gluteal", "v2_seed");
-                                 # "" = the robot's design robot/data/thesis_design.yaml
-    actuators = []               # actuator ids; [] = all
-    warm_start = ""              # run folder whose design.yaml seeds the routes and sizes (its diameter and
-                                 # parallel count are tried first; the full loop only where they fail; a PAM
-                                 # whose warm start holds keeps its pulley-block ratio, and its route where
-                                 # the continued bone rounds would end over a strain or force limit it keeps)
-    pressure_Pa = 620000.0
-    force_model = "v3"
-    diameters_mm = [10, 20, 40]  # outer loop
-    max_parallel = 3             # outer loop: 1..max_parallel PAMs on the route
-    multistart = 1               # extra solves from perturbed seeds (kept if better) ...
-    multistart_threshold = 0.001 # ... when the best objective is above this (NRMSE ~ 3 %)
-    seed = 0                     # random seed of the perturbations
-    workers = 2                  # processes (actuators are independent problems)
-    max_iter = 400               # IPOPT iterations per solve
-    max_solve_seconds = 12.0     # IPOPT CPU-time limit per solve [s] (0: none); a solve that hits it is
-                                 # treated as failed (infeasible diameter / parallel count tries end sooner)
+Sections: the problem every solve shares (``[samples]``, ``[weights]``, ``[limits]``), then one per stage of
+:data:`pamkin.optimize.pipeline.STAGES` that has keys (``[first_fit]``, ``[unit_budget]``, ``[bone_rounds]`` and
+its one-segment step ``[mount]``, ``[resize]``, ``[reallocate]``, ``[mass]``, ``[walking]``, ``[clearance]``,
+``[rollers]``, ``[detours]``, ``[pam_ends]``), and the per-actuator tables ``[regions]``, ``[transmission]`` and
+``[eyelets]`` of the seed stage. Example::
 
-    [samples]
-    primary = 25                 # 1-D sweep of the primary coordinate (others 0)
-    secondary = 7                # per axis of each 2-D grid primary x secondary
-    constraint = 5               # per axis of the full grid over primary + secondaries (strain limits)
-    random = 30                  # (v2) multi-joint training poses per actuator (own random stream, never the audit's)
-    gait = false                 # (v2) also train on the walking trial (between its frames; both legs, mirrored)
+    design = "v2_seed"
+    workers = 2
 
-    [weights]
-    primary = 1.0
-    secondary = 0.5
-    regularization = 0.001       # pull towards the seed route, per (region size)^2
-    whole_vector = 1.0           # (v2) torque error about every coordinate crossed, on the training poses
-    mass = 0.02                  # (v2) outer loop: objective penalty per kg of PAM (diameter, parallel count)
+    [first_fit]
+    diameters_mm = [20, 40]
 
-    [limits]
-    region_m = 0.05              # half-width of every route point's box around its seed [m]
-    min_point_distance_m = 0.01  # between successive route points
-    bone_clearance = true        # route segments clear the bone-shaft capsules by the PAM radius (with bone_mesh: until its rounds)
-    kmax_scale = 1.0             # contraction limit = kmax_scale * kmax(l0)
-    pretension_scale = 1.0       # stretch limit = pretension_scale * Festo's limit
-    fix_lengths = false          # keep the seed resting and tendon lengths (move attachment points only)
-    move_moving_points = true    # offset points that move with a coordinate (the patella) within the region
-    rated_force = true           # (v2) force per PAM <= Festo's rated force and contraction <= Festo's maximum (0.25)
-    one_segment = false          # (v2) the PAM (+ fittings) fits on one straight segment of its route, as a
-                                 #      constraint of every solve (slow, poor fits: mount below instead)
-    one_segment_actuators = [13, 14]  # (v2) actuators solved with the one-segment rows all the same (the
-                                 #      gastrocnemii: measured to keep their fit, README)
-    mount = true                 # (v2) after the bone rounds, the route fixed: the PAM is put on one straight
-    mount_cost = 0.1             #      segment (resting and tendon length re-solved, the tendon over the rest)
-                                 #      where the root of the fit objective grows by at most mount_cost; where
-                                 #      it narrowly cannot, bone rounds with the PAM on the segment and the points
-                                 #      free; elsewhere the run names the PAM and why (optimize.mount)
-    mount_failing = true         # (v2, with mount) a PAM whose fit already fails both of the audit's fit limits
-                                 #      (primary NRMSE > 0.15 and worst error > 0.25 on the optimiser's own
-                                 #      validation poses, optimize.validation) goes on one segment at any fit cost
-                                 #      that keeps every limit: buildability first where no fit count is at stake
-    mount_passing = true         # (v2, with mount) a PAM that on one segment (or on a pulley block) still passes
-                                 #      both audit fit limits on the validation poses, less 0.02, goes on it at any
-                                 #      fit cost that keeps every limit: no fit count is lost
-    mount_blocks = true          # (v2, with mount) a PAM out of reach of one segment at 1:1, or infeasible there, is tried on a 2:1
-                                 #      pulley block on the same route, then 3:1 (same count, same or larger diameter;
-                                 #      the same mount_cost rule; optimize.mount.mount_block)
-    sensitivity_pct = 9.0        # (v2) a 1 mm error of a fixed attachment point changes the primary torque
-                                 # on its 1-D sweep by at most this % of the human peak (audit: 10); 0: off
-    bone_mesh = true             # (v2) attachment points on their bone (3..18 mm out), segments clear of the
-                                 #      real bone meshes at random, sweep and gait poses (optimize.bone_cuts)
-    bone_rounds = 10             # (v2) largest number of re-linearisation rounds of the bone-mesh rows (a route
-                                 #      clear of bone still gaining >= 5 % a round gets up to 6 more)
-    bone_seed_start = true       # (v2) the bone-mesh rounds also start from the seed route (points moved onto
-                                 #      their bone's 3..18 mm band); the better of the two results is kept
-    bracket_fit = false          # (v2, with bone_mesh) the fit itself keeps attachment points 3..18 mm out of
-                                 #      their bone (smooth bone-distance splines, optimize.bracket)
-    pam_clearance = false        # (v2, with bone_mesh) second pass: routes that hit another PAM's body are
-                                 #      solved again with the first-pass bodies as obstacles
-    rollers = false              # (v2, with bone_mesh) last stage: an actuator failing an audit fit limit on the
-                                 #      validation poses gets rollers (cable guides on bone, pamkin.robot.rollers) where
-                                 #      its fit without the bone rows goes into bone, long enough that the cable
-                                 #      never slips off an end, kept where they lower its validation error and the
-                                 #      route is clear (optimize.rollers); a warm re-run does not try again what its
-                                 #      warm start's run tried without a gain
-    detours = true               # (v2, with bone_mesh) a route segment between two points of one bone (a constant
-                                 #      length) too short to hold the PAM body is left out of that bone's rows and
-                                 #      afterwards carried round it by via points (pamkin.robot.detour; the added length
-                                 #      on the tendon: every torque unchanged), then checked against every bone
-    max_units = 60               # (v2) PAM units of the whole robot (both sides; 0: no limit): the diameter
-                                 #      and parallel count of every actuator are chosen together, before the
-                                 #      bone-mesh rounds, for the least summed score within this budget
-    walking_min = 0.9            # (v2, with max_units) after the bone rounds: while the pressure plan of the
-                                 #      walking trial, sampled between its frames, is feasible on less than
-                                 #      this fraction, actuators at the pressure limit get another diameter /
-                                 #      parallel count within the budget, solved again (0: off;
-                                 #      optimize.stages.walking)
-    resize_above = 1.0           # (v2, with bone_mesh and max_units) after the bone rounds: an actuator whose fit
-                                 #      objective is still above this gets its other diameters (same parallel
-                                 #      count: the unit budget holds) through the bone rounds and the one-segment
-                                 #      stage too, where their fit before the rounds scored less; the lower
-                                 #      score after the rounds is kept (0: off)
-    block_refit_above = 0.5      # (v2, with mount_blocks and max_units) in the re-sizing: an actuator the one-segment
-                                 #      stage put on a pulley block, whose fit objective is above this (and not above
-                                 #      resize_above), is solved again with a 3:1 block throughout (same diameter and
-                                 #      count: first phase, bone rounds, one-segment stage); the lower score kept,
-                                 #      never a PAM off its straight segment (0: off; optimize.stages.resize.block_tasks)
-    reallocate = true            # (v2, with bone_mesh and max_units) after the re-sizing: a PAM unit of an actuator
-                                 #      with several that fails both audit fit limits on the validation poses
-                                 #      (its units buy no pass) moves to the failing actuator nearest to passing
-                                 #      (at most 2 tried per unit, one more unit each: bone rounds, one-segment stage),
-                                 #      where that one then passes both within 0.02 and the robot's mass stays
-                                 #      within max_mass_kg; the unit budget holds (optimize.stages.reallocate)
-    resize_on = "objective"      # (v2) what the re-sizing compares: "objective" (score: fit objective + mass
-                                 #      penalty) or "validation" (primary NRMSE + worst error on 400 poses like
-                                 #      the audit's from the optimiser's own stream, optimize.validation)
-    max_mass_kg = 22.0           # (v2, with mount_blocks) the robot's estimated mass (both sides, the audit's:
-                                 #      assumed Festo weights and block masses): where the one-segment stage's
-                                 #      pulley blocks take it above this, blocks come off again, the least
-                                 #      score lost per kg first (0: off)
-    pam_ends = true              # (v2, with mount) where every PAM on one segment is anchored: the segment its body
-                                 #      sits on (the design's pam_on, where it fits on more than one) and its end
-                                 #      (pam_at; the tendon on the other side, where the route has a fixed length on
-                                 #      both sides): the place that leaves the fewest intersecting PAM pairs at the
-                                 #      run's own poses (optimize.pam_clearance.choose_ends)
+    [mount]
+    cost = 0.2
 
-    [regions]                    # per actuator or per point: "6" = 0.08, "6.p2" = [0.02, 0.02, 0.0]
-    [transmission]               # per actuator: "4" = 2 puts a 2:1 pulley block on its PAM (pamkin.robot.design:
-                                 # the route moves twice the PAM's stroke at half its force); default: the
-                                 # seed design's (1: direct)
-    [eyelets]                    # per actuator: "19" = "talus_r", or {body = "talus_r", at = 0.5, gap = 0.008},
-                                 # or a list of those: an eyelet (a via point on a bracket of that body) in
-                                 # the seed route (of an optimised actuator) where it passes the body between
-                                 # its segment's ends' bodies,
-                                 # before the fit (pamkin.robot.eyelets.add_eyelet: where the segment comes nearest
-                                 # the bone at the default pose, or a fraction "at" along it; "gap" [m] off
-                                 # the bone, default 0.008); the optimiser then moves it like any point.
-                                 # Default: soleus (12) nearest, peroneus tertius (19), extensor digitorum
-                                 # (22) and hallucis longus (23) half way, all on the talus; a table given
-                                 # replaces the default ([eyelets] alone: none); a route already holding a
-                                 # point on that body (a warm start's eyelet) is left as it is
+    [regions]
+    "6" = 0.08
+    "6.p2" = [0.02, 0.02, 0.0]
+
+:data:`FAST_FIT` holds the earlier 1-D/2-D fit (``examples/optimize_fast.toml``, about 2.5 minutes).
 """
 
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import re
 import tomllib
 from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
+from typing import Any
 
 from pamkin.errors import ConfigurationError, DataFileError
 from pamkin.human.bones import BoneSet
 from pamkin.robot.design import TRANSMISSIONS, rescale_for_transmission, unit_mass
 from pamkin.robot.eyelets import EYELET_GAP_M, add_eyelet, has_eyelet
 
-_SECTIONS = {
-    "samples": {"primary": "n_primary", "secondary": "n_secondary", "constraint": "n_constraint",
-                "random": "n_random", "gait": "gait_samples"},
-    "weights": {"primary": "weight_primary", "secondary": "weight_secondary",
-                "regularization": "regularization", "whole_vector": "weight_whole_vector", "mass": "weight_mass"},
-    "limits": {"region_m": "region_m", "min_point_distance_m": "min_point_distance_m",
-               "bone_clearance": "bone_clearance", "kmax_scale": "kmax_scale",
-               "pretension_scale": "pretension_scale", "fix_lengths": "fix_lengths",
-               "move_moving_points": "move_moving_points", "rated_force": "rated_force",
-               "one_segment": "one_segment", "one_segment_actuators": "one_segment_actuators", "mount": "mount", "mount_cost": "mount_cost", "mount_failing": "mount_failing", "mount_passing": "mount_passing", "mount_blocks": "mount_blocks", "sensitivity_pct": "sensitivity_pct", "bone_mesh": "bone_mesh", "bone_rounds": "bone_rounds",
-               "bone_seed_start": "bone_seed_start", "bracket_fit": "bracket_fit",
-               "max_units": "max_units", "walking_min": "walking_min",
-               "pam_clearance": "pam_clearance", "rollers": "rollers", "detours": "detours", "resize_above": "resize_above", "block_refit_above": "block_refit_above", "reallocate": "reallocate",
-               "max_mass_kg": "max_mass_kg", "pam_ends": "pam_ends", "resize_on": "resize_on"},
-}
-
-
-def _is_int(v) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
-
-
-def _is_number(v) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-
-
-#: The earlier default (before the v2 ingredients were switched on): the 1-D/2-D fit of the robot's
-#: current design, capsule bone clearance, no unit budget. ``RunConfig(**FAST_FIT)``.
-FAST_FIT: dict = {"design": "", "multistart": 2, "max_solve_seconds": 0.0, "n_random": 0, "weight_mass": 0.0,
-                  "rated_force": False, "bone_mesh": False, "max_units": 0, "sensitivity_pct": 0.0,
-                  "mount": False, "one_segment_actuators": [], "rollers": False, "eyelets": {}}
-
-#: Actuators of the v2 seed solved with the one-segment rows by default (``one_segment_actuators``).
+#: Actuators of the v2 seed solved with the one-segment rows by default (``[limits] one_segment_actuators``).
 ONE_SEGMENT_ACTUATORS = (13, 14)
 
 #: Default eyelets (``[eyelets]``): the tibia-to-calcaneus segment of soleus, peroneus tertius and the long toe
-#: extensors guided on the talus (measured: README "Eyelets"). Entries naming an actuator the seed design
-#: lacks, or whose route passes no such segment, are skipped (they fit the v2 seed and the thesis design).
+#: extensors guided on the talus. Entries naming an actuator the seed design lacks, or whose route passes no
+#: such segment, are skipped (they fit the v2 seed and the thesis design).
 DEFAULT_EYELETS: dict = {"12": ["talus_r"], "19": [{"body": "talus_r", "at": 0.5}],
                          "22": [{"body": "talus_r", "at": 0.5}], "23": [{"body": "talus_r", "at": 0.5}]}
 
 
+def key(default: Any, doc: str, lo: float | None = None, hi: float | None = None, choices: tuple = (),
+        factory=None, unit: str = "") -> Any:
+    """A config key: its default, description, allowed range (``lo`` .. ``hi``) or ``choices``, and the unit an
+    error message names."""
+    meta = {"doc": doc, "lo": lo, "hi": hi, "choices": choices, "unit": unit}
+    if factory is not None:
+        return field(default_factory=factory, metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass
+class Samples:
+    """``[samples]``: where every actuator's problem samples the human torque (shared by every solve)."""
+
+    primary: int = key(25, "1-D sweep of the primary coordinate (others 0)", 2, 201)
+    secondary: int = key(7, "per axis of each 2-D grid primary x secondary", 2, 201)
+    constraint: int = key(5, "per axis of the full grid over primary + secondaries (strain limits)", 2, 201)
+    random: int = key(30, "multi-joint training poses per actuator (own random stream, never the audit's)", 0, 10000)
+    gait: bool = key(False, "also train on the walking trial (between its frames; both legs, mirrored)")
+
+
+@dataclass
+class Weights:
+    """``[weights]``: the terms of every actuator's objective."""
+
+    primary: float = key(1.0, "weight of the primary coordinate's 1-D sweep", 0)
+    secondary: float = key(0.5, "weight of the 2-D grids", 0)
+    regularization: float = key(1e-3, "pull towards the seed route, per (region size)^2", 0)
+    whole_vector: float = key(1.0, "torque error about every coordinate crossed, on the training poses", 0)
+    mass: float = key(0.02, "objective penalty per kg of PAM (diameter, parallel count; both sides)", 0)
+
+
+@dataclass
+class Limits:
+    """``[limits]``: the constraints of every actuator's problem (shared by every solve)."""
+
+    region_m: float = key(0.05, "half-width of every route point's box around its seed [m]", 0, 1.0)
+    min_point_distance_m: float = key(0.01, "least distance between successive route points [m]", 0, 1.0)
+    bone_clearance: bool = key(True, "route segments clear the bone-shaft capsules by the PAM radius "
+                                     "(with the bone meshes: until their rounds)")
+    kmax_scale: float = key(1.0, "contraction limit = kmax_scale x kmax(l0)", 1e-9, 1.0)
+    pretension_scale: float = key(1.0, "stretch limit = pretension_scale x Festo's limit", 0, 1.0)
+    fix_lengths: bool = key(False, "keep the seed resting and tendon lengths (move attachment points only)")
+    move_moving_points: bool = key(True, "offset points that move with a coordinate (the patella) within the region")
+    rated_force: bool = key(True, "force per PAM <= Festo's rated force and contraction <= Festo's maximum (0.25)")
+    one_segment: bool = key(False, "the PAM (+ fittings) fits on one straight segment of its route, as a "
+                                   "constraint of every solve (slow, poor fits: the [mount] step instead)")
+    one_segment_actuators: list[int] = key(None, "actuators solved with the one-segment rows all the same "
+                                                 "(the gastrocnemii: measured to keep their fit)",
+                                           factory=lambda: list(ONE_SEGMENT_ACTUATORS))
+    sensitivity_pct: float = key(9.0, "a 1 mm error of a fixed attachment point changes the primary torque on "
+                                      "its 1-D sweep by at most this % of the human peak (audit: 10); 0: off", 0, 100)
+
+
+@dataclass
+class FirstFit:
+    """``[first_fit]``: the first-fit stage's outer loop over Festo diameter and parallel count, multistart and
+    IPOPT's limits."""
+
+    diameters_mm: list[int] = key(None, "Festo diameters tried (outer loop), a subset of [10, 20, 40]",
+                                  factory=lambda: [10, 20, 40])
+    max_parallel: int = key(3, "outer loop: 1..max_parallel PAMs on the route", 1, 3)
+    multistart: int = key(1, "extra solves from perturbed seeds (kept if better) ...", 0, 100)
+    multistart_threshold: float = key(1e-3, "... when the best objective is above this (NRMSE ~ 3 %)", 0)
+    max_iter: int = key(400, "IPOPT iterations per solve", 1, 100000)
+    max_solve_seconds: float = key(12.0, "IPOPT CPU-time limit per solve [s] (0: none); a solve that hits it is "
+                                         "treated as failed", 0, 86400)
+
+
+@dataclass
+class UnitBudget:
+    """``[unit_budget]``: the unit-budget stage."""
+
+    max_units: int = key(60, "PAM units of the whole robot (both sides; 0: no limit, the stage is off): every "
+                             "actuator's diameter and parallel count chosen together for the least summed score", 0,
+                         10000)
+
+
+@dataclass
+class BoneRounds:
+    """``[bone_rounds]``: the real bone meshes and the bone-rounds stage."""
+
+    enabled: bool = key(True, "attachment points on their bone (3..18 mm out), segments clear of the real bone "
+                              "meshes at random, sweep and gait poses (optimize.bone_cuts); needed by the "
+                              "re-sizing, reallocation, PAM-PAM, roller and detour stages")
+    rounds: int = key(10, "largest number of re-linearisation rounds (a route clear of bone still gaining "
+                          ">= 5 % a round gets up to 6 more)", 1, 20)
+    seed_start: bool = key(True, "the rounds also start from the seed route (points moved onto their bone's "
+                                 "3..18 mm band); the better of the two results is kept")
+    bracket_fit: bool = key(False, "the fit itself keeps attachment points 3..18 mm out of their bone (smooth "
+                                   "bone-distance splines, optimize.bracket)")
+
+
+@dataclass
+class Mount:
+    """``[mount]``: the one-segment step of the bone-rounds stage (optimize.mount)."""
+
+    enabled: bool = key(True, "after the bone rounds, with the route fixed, the PAM is put on one straight "
+                              "segment (resting and tendon length re-solved) where its fit allows")
+    cost: float = key(0.1, "largest growth of the root of the fit objective a mount may cost", 0, 100)
+    failing: bool = key(True, "a PAM whose fit already fails both audit fit limits on the validation poses goes "
+                              "on one segment at any fit cost that keeps every limit")
+    passing: bool = key(True, "a PAM that on one segment (or a pulley block) still passes both audit fit limits, "
+                              "less 0.02, goes on it at any fit cost that keeps every limit")
+    blocks: bool = key(True, "a PAM out of reach of one segment at 1:1 is tried on a 2:1 pulley block, then 3:1")
+
+
+@dataclass
+class Resize:
+    """``[resize]``: the re-sizing stage (needs [bone_rounds] and [unit_budget])."""
+
+    above: float = key(1.0, "an actuator whose fit objective is still above this gets its other diameters "
+                            "through the bone rounds too; the lower score kept (0: off)", 0)
+    block_refit_above: float = key(0.5, "an actuator the one-segment step put on a pulley block, with a fit "
+                                        "objective above this, is solved again with a 3:1 block throughout (0: off)",
+                                   0)
+    on: str = key("objective", "what the re-sizing compares: 'objective' (fit objective + mass penalty) or "
+                               "'validation' (primary NRMSE + worst error on the validation poses)",
+                  choices=("objective", "validation"))
+
+
+@dataclass
+class Reallocate:
+    """``[reallocate]``: the unit-reallocation stage (needs [bone_rounds] and [unit_budget])."""
+
+    enabled: bool = key(True, "a PAM unit of an actuator failing both audit fit limits moves to the failing "
+                              "actuator nearest to passing that then passes both")
+
+
+@dataclass
+class Mass:
+    """``[mass]``: the mass stage."""
+
+    max_kg: float = key(22.0, "the robot's estimated mass budget (both sides, the audit's) [kg]: pulley blocks "
+                              "come off again while it is over (0: off)", 0, 1000)
+
+
+@dataclass
+class Walking:
+    """``[walking]``: the walking stage (needs [unit_budget])."""
+
+    min_fraction: float = key(0.9, "while the walking trial's pressure plan is feasible on less than this fraction "
+                                   "of its samples, actuators at the pressure limit are re-sized (0: off)", 0, 1)
+
+
+@dataclass
+class Clearance:
+    """``[clearance]``: the PAM-PAM clearance stage (needs [bone_rounds])."""
+
+    enabled: bool = key(False, "routes that hit another PAM's body are solved again with the bodies as obstacles")
+
+
+@dataclass
+class Rollers:
+    """``[rollers]``: the roller stage (needs [bone_rounds])."""
+
+    enabled: bool = key(False, "actuators failing an audit fit limit get rollers (cable guides on bone) where "
+                               "their fit without the bone rows goes into bone, kept where they help")
+
+
+@dataclass
+class Detours:
+    """``[detours]``: the detour stage (needs [bone_rounds])."""
+
+    enabled: bool = key(True, "same-body route segments too short to hold the PAM body are left out of that "
+                              "bone's rows and carried round it by via points afterwards")
+
+
+@dataclass
+class PamEnds:
+    """``[pam_ends]``: the PAM-ends stage (needs [mount])."""
+
+    enabled: bool = key(True, "each PAM on one segment anchored at the segment and end that leave the fewest "
+                              "intersecting PAM pairs")
+
+
+#: Section name -> its dataclass, in the order of the reference page.
+SECTIONS: dict[str, type] = {
+    "samples": Samples, "weights": Weights, "limits": Limits, "first_fit": FirstFit, "unit_budget": UnitBudget,
+    "bone_rounds": BoneRounds, "mount": Mount, "resize": Resize, "reallocate": Reallocate, "mass": Mass,
+    "walking": Walking, "clearance": Clearance, "rollers": Rollers, "detours": Detours, "pam_ends": PamEnds,
+}
+#: Per-actuator tables (free keys, checked by :meth:`RunConfig.validate`).
+TABLES = ("regions", "transmission", "eyelets")
+#: Where the keys of the earlier flat layout live now (an old file gets an error naming the new key).
+MOVED = {
+    "diameters_mm": "first_fit.diameters_mm", "max_parallel": "first_fit.max_parallel",
+    "multistart": "first_fit.multistart", "multistart_threshold": "first_fit.multistart_threshold",
+    "max_iter": "first_fit.max_iter", "max_solve_seconds": "first_fit.max_solve_seconds",
+    "limits.max_units": "unit_budget.max_units", "limits.bone_mesh": "bone_rounds.enabled",
+    "limits.bone_rounds": "bone_rounds.rounds", "limits.bone_seed_start": "bone_rounds.seed_start",
+    "limits.bracket_fit": "bone_rounds.bracket_fit", "limits.mount": "mount.enabled", "limits.mount_cost": "mount.cost",
+    "limits.mount_failing": "mount.failing", "limits.mount_passing": "mount.passing",
+    "limits.mount_blocks": "mount.blocks", "limits.resize_above": "resize.above",
+    "limits.block_refit_above": "resize.block_refit_above", "limits.resize_on": "resize.on",
+    "limits.reallocate": "reallocate.enabled", "limits.max_mass_kg": "mass.max_kg",
+    "limits.walking_min": "walking.min_fraction", "limits.pam_clearance": "clearance.enabled",
+    "limits.rollers": "rollers.enabled", "limits.detours": "detours.enabled", "limits.pam_ends": "pam_ends.enabled",
+}
+
+
 @dataclass
 class RunConfig:
-    """An optimisation run (see the module docstring for the TOML form and defaults)."""
+    """An optimisation run: the top-level keys, one section per stage, the per-actuator tables."""
 
-    design: str = "v2_seed"
-    actuators: list[int] = field(default_factory=list)
-    warm_start: str = ""
-    pressure_Pa: float = 620e3
-    force_model: str = "v3"
-    diameters_mm: list[int] = field(default_factory=lambda: [10, 20, 40])
-    max_parallel: int = 3
-    multistart: int = 1
-    multistart_threshold: float = 1e-3
-    seed: int = 0
-    workers: int = 2
-    max_iter: int = 400
-    max_solve_seconds: float = 12.0
-    n_primary: int = 25
-    n_secondary: int = 7
-    n_constraint: int = 5
-    n_random: int = 30
-    gait_samples: bool = False
-    weight_primary: float = 1.0
-    weight_secondary: float = 0.5
-    regularization: float = 1e-3
-    weight_whole_vector: float = 1.0
-    weight_mass: float = 0.02
-    region_m: float = 0.05
-    min_point_distance_m: float = 0.01
-    bone_clearance: bool = True
-    kmax_scale: float = 1.0
-    pretension_scale: float = 1.0
-    fix_lengths: bool = False
-    move_moving_points: bool = True
-    rated_force: bool = True
-    one_segment: bool = False
-    one_segment_actuators: list[int] = field(default_factory=lambda: list(ONE_SEGMENT_ACTUATORS))
-    mount: bool = True
-    mount_cost: float = 0.1
-    mount_failing: bool = True
-    mount_passing: bool = True
-    mount_blocks: bool = True
-    sensitivity_pct: float = 9.0
-    bone_mesh: bool = True
-    bone_rounds: int = 10
-    bone_seed_start: bool = True
-    bracket_fit: bool = False
-    pam_clearance: bool = False
-    rollers: bool = False
-    detours: bool = True
-    max_units: int = 60
-    walking_min: float = 0.9
-    resize_above: float = 1.0
-    block_refit_above: float = 0.5
-    reallocate: bool = True
-    max_mass_kg: float = 22.0
-    pam_ends: bool = True
-    resize_on: str = "objective"
-    regions: dict[str, float | list[float]] = field(default_factory=dict)
-    transmission: dict[str, int] = field(default_factory=dict)
-    eyelets: dict = field(default_factory=lambda: copy.deepcopy(DEFAULT_EYELETS))
-    source: str = ""
+    design: str = key("v2_seed", "seed design: a design file, a run folder or a keyword ('thesis', "
+                                 "'split_gluteal', 'v2_seed'); '' = the built-in thesis design")
+    actuators: list[int] = key(None, "actuator ids to optimise; [] = all", factory=list)
+    warm_start: str = key("", "run folder whose design.yaml seeds the routes and sizes (its diameter and parallel "
+                              "count tried first; the full loop only where they fail)")
+    pressure_Pa: float = key(620e3, "the PAMs' operating pressure [Pa]", 1e5, 8e5, unit="Pa (e.g. 620000 for 6.2 bar)")
+    force_model: str = key("v3", "PAM force model: 'v3' (the lab's measured model) or 'v0' (the thesis table)",
+                           choices=("v3", "v0"))
+    seed: int = key(0, "random seed of the training poses and perturbations", 0)
+    workers: int = key(2, "local worker processes (actuators are independent problems)", 1, 1024)
+    samples: Samples = field(default_factory=Samples)
+    weights: Weights = field(default_factory=Weights)
+    limits: Limits = field(default_factory=Limits)
+    first_fit: FirstFit = field(default_factory=FirstFit)
+    unit_budget: UnitBudget = field(default_factory=UnitBudget)
+    bone_rounds: BoneRounds = field(default_factory=BoneRounds)
+    mount: Mount = field(default_factory=Mount)
+    resize: Resize = field(default_factory=Resize)
+    reallocate: Reallocate = field(default_factory=Reallocate)
+    mass: Mass = field(default_factory=Mass)
+    walking: Walking = field(default_factory=Walking)
+    clearance: Clearance = field(default_factory=Clearance)
+    rollers: Rollers = field(default_factory=Rollers)
+    detours: Detours = field(default_factory=Detours)
+    pam_ends: PamEnds = field(default_factory=PamEnds)
+    regions: dict = key(None, "per actuator or per point: '6' = 0.08, '6.p2' = [0.02, 0.02, 0.0] (box half-widths "
+                              "[m])", factory=dict)
+    transmission: dict = key(None, "per actuator: '4' = 2 puts a 2:1 pulley block on its PAM (default: the seed "
+                                   "design's)", factory=dict)
+    eyelets: dict = key(None, "per actuator: '19' = 'talus_r', or {body, at, gap}, or a list of those: an eyelet "
+                              "(a via point on a bracket of that body) in the seed route; a table given replaces "
+                              "the default (soleus, peroneus tertius, the long toe extensors on the talus)",
+                        factory=lambda: copy.deepcopy(DEFAULT_EYELETS))
+    source: str = field(default="", metadata={"internal": True})
+
+    def replace(self, changes: dict[str, Any]) -> RunConfig:
+        """A validated copy with ``changes`` applied: ``{"workers": 1, "mount.cost": 0.2}`` (dotted keys name a
+        section's key, as in the TOML file)."""
+        new = copy.deepcopy(self)
+        for dotted, value in changes.items():
+            section, _, name = dotted.rpartition(".")
+            target = getattr(new, section) if section else new
+            if section not in ("", *SECTIONS) or name not in {f.name for f in fields(target)}:
+                raise ConfigurationError(f"unknown config key {dotted!r}")
+            setattr(target, name, copy.deepcopy(value))
+        new.validate()
+        return new
 
     def validate(self) -> None:
         """Check every value's type and range; raise :class:`DataFileError` naming the file and key.
 
-        Also checks values set after loading (command-line overrides).
-        """
-        def bad(key: str, msg: str) -> DataFileError:
-            return DataFileError(self.source or "<config>", f"{key}: {msg}")
-
-        for f in fields(self):
-            if f.name in ("source", "regions", "transmission", "eyelets"):
-                continue
-            key, value = _KEYS[f.name], getattr(self, f.name)
-            kind = _KINDS[f.name]
-            if kind == "int" and not _is_int(value):
-                raise bad(key, f"must be an integer, got {value!r}")
-            if kind == "float" and not _is_number(value):
-                raise bad(key, f"must be a finite number, got {value!r}")
-            if kind == "bool" and not isinstance(value, bool):
-                raise bad(key, f"must be true or false, got {value!r}")
-            if kind == "str" and not isinstance(value, str):
-                raise bad(key, f"must be a string, got {value!r}")
-            if kind == "list[int]" and not (isinstance(value, list) and all(_is_int(v) for v in value)):
-                raise bad(key, f"must be a list of integers, e.g. [1, 2], got {value!r}")
-        if not self.diameters_mm or any(d not in (10, 20, 40) for d in self.diameters_mm) \
-                or len(set(self.diameters_mm)) != len(self.diameters_mm):
-            raise bad("diameters_mm", f"must be a non-empty subset of [10, 20, 40] [mm], got {self.diameters_mm}")
-        if any(a < 1 for a in self.actuators) or len(set(self.actuators)) != len(self.actuators):
-            raise bad("actuators", f"must be distinct actuator ids >= 1, got {self.actuators}")
-        if any(a < 1 for a in self.one_segment_actuators) \
-                or len(set(self.one_segment_actuators)) != len(self.one_segment_actuators):
-            raise bad("limits.one_segment_actuators", f"must be distinct actuator ids >= 1, got "
-                                                      f"{self.one_segment_actuators}")
-        if not 1e5 <= self.pressure_Pa <= 8e5:
-            raise bad("pressure_Pa", f"must lie in [100000, 800000] Pa (e.g. 620000 for 6.2 bar), got "
-                                     f"{self.pressure_Pa:g}")
-        if self.force_model not in ("v3", "v0"):
-            raise bad("force_model", f"must be 'v3' (the lab's measured model) or 'v0' (the thesis table), got "
-                                     f"{self.force_model!r}")
-        if self.resize_on not in ("objective", "validation"):
-            raise bad("limits.resize_on", f"must be 'objective' or 'validation', got {self.resize_on!r}")
-        if self.force_model == "v0" and self.pressure_Pa != 620e3:
-            raise bad("force_model", "'v0' is the thesis's 620 kPa table: pressure_Pa must be 620000")
-        if not 1 <= self.max_parallel <= 3:
-            raise bad("max_parallel", f"must be 1, 2 or 3, got {self.max_parallel}")
-        for name in ("n_primary", "n_secondary", "n_constraint"):
-            if not 2 <= getattr(self, name) <= 201:
-                raise bad(_KEYS[name], f"must be >= 2 and <= 201 samples, got {getattr(self, name)}")
-        for name in ("multistart", "seed", "multistart_threshold", "weight_primary", "weight_secondary",
-                     "regularization", "region_m", "min_point_distance_m", "pretension_scale",
-                     "weight_whole_vector", "weight_mass", "n_random", "max_solve_seconds", "sensitivity_pct",
-                     "mount_cost", "resize_above", "block_refit_above", "max_mass_kg"):
-            if getattr(self, name) < 0:
-                raise bad(_KEYS[name], f"must be >= 0, got {getattr(self, name)}")
-        if self.weight_primary + self.weight_secondary <= 0:
-            raise bad("weights", "primary and secondary must not both be 0 (nothing to fit)")
-        if not 0 < self.kmax_scale <= 1:
-            raise bad("limits.kmax_scale", f"must lie in (0, 1], got {self.kmax_scale}")
-        if self.pretension_scale > 1:
-            raise bad("limits.pretension_scale", f"must lie in [0, 1], got {self.pretension_scale}")
-        if self.workers < 1:
-            raise bad("workers", f"must be >= 1, got {self.workers}")
-        if self.pam_clearance and not self.bone_mesh:
-            raise bad("limits.pam_clearance", "needs limits.bone_mesh = true (the PAM-PAM pass reuses its rounds)")
-        if self.rollers and not self.bone_mesh:
-            raise bad("limits.rollers", "needs limits.bone_mesh = true (rollers are placed and checked on the bone meshes)")
-        if self.max_units < 0:
-            raise bad("limits.max_units", f"must be >= 0 (0: no limit), got {self.max_units}")
-        if not 0 <= self.walking_min <= 1:
-            raise bad("limits.walking_min", f"must lie in [0, 1] (a fraction of the samples; 0: off), got "
-                                            f"{self.walking_min}")
-        if not 1 <= self.bone_rounds <= 20:
-            raise bad("limits.bone_rounds", f"must lie in [1, 20], got {self.bone_rounds}")
-        if self.max_iter < 1:
-            raise bad("max_iter", f"must be >= 1, got {self.max_iter}")
-        if not isinstance(self.regions, dict):
-            raise bad("regions", "must be a table")
-        for key, v in self.regions.items():
-            if not re.fullmatch(r"[0-9]+(\.[A-Za-z0-9_]+)?", str(key)):
-                raise bad(f"regions.{key}", "keys are an actuator id (\"6\") or actuator.point (\"6.p2\")")
-            vals = v if isinstance(v, list) else [v]
-            if len(vals) not in (1, 3) or any(not _is_number(x) or x < 0 for x in vals) \
-                    or (isinstance(v, list) and len(vals) != 3):
-                raise bad(f"regions.{key}", f"a non-negative number or 3 non-negative numbers [m], got {v!r}")
-        if not isinstance(self.eyelets, dict):
-            raise bad("eyelets", "must be a table")
-        for key, v in self.eyelets.items():
-            if not re.fullmatch(r"[0-9]+", str(key)):
-                raise bad(f"eyelets.{key}", "keys are actuator ids (\"19\")")
-            items = v if isinstance(v, list) else [v]
-            if not items:
-                raise bad(f"eyelets.{key}", "a body name, a table {body, at, gap} or a list of those, got []")
-            for e in items:
-                if isinstance(e, str) and e:
+        Also checks values set after loading (command-line overrides)."""
+        where = self.source or "<config>"
+        for section, obj in [("", self)] + [(s, getattr(self, s)) for s in SECTIONS]:
+            if not isinstance(obj, SECTIONS.get(section, RunConfig)):
+                raise DataFileError(where, f"[{section}] must be a table")
+            for f in fields(obj):
+                if (not section and (f.name in SECTIONS or f.name in TABLES)) or f.metadata.get("internal"):
                     continue
-                if not isinstance(e, dict) or not isinstance(e.get("body"), str) or not e["body"] \
-                        or set(e) - {"body", "at", "gap"}:
-                    raise bad(f"eyelets.{key}", f"a body name (\"talus_r\"), a table {{body, at, gap}} or a list "
-                                                f"of those, got {e!r}")
-                if "at" in e and not (_is_number(e["at"]) and 0 < e["at"] < 1):
-                    raise bad(f"eyelets.{key}", f"'at' is a fraction of the segment within (0, 1), got {e['at']!r}")
-                if "gap" in e and not (_is_number(e["gap"]) and 0 < e["gap"] <= 0.018):
-                    raise bad(f"eyelets.{key}", f"'gap' is a distance off the bone in (0, 0.018] m, got {e['gap']!r}")
-        if not isinstance(self.transmission, dict):
-            raise bad("transmission", "must be a table")
-        for key, v in self.transmission.items():
-            if not re.fullmatch(r"[0-9]+", str(key)):
-                raise bad(f"transmission.{key}", "keys are actuator ids (\"4\")")
-            if isinstance(v, bool) or v not in TRANSMISSIONS:
-                raise bad(f"transmission.{key}", f"must be one of {TRANSMISSIONS} (1: direct, k: a k:1 pulley "
-                                                 f"block), got {v!r}")
+                _check_value(where, f"{section}.{f.name}" if section else f.name, f, getattr(obj, f.name))
+        _check_cross(self, where)
+        _check_tables(self, where)
 
     def check_design(self, design) -> None:
         """Check actuator ids and region keys against the seed design's actuators and route points.
@@ -379,40 +330,39 @@ class RunConfig:
         Raises:
             DataFileError: naming the file and the key that names no actuator or point.
         """
+        where = self.source or "<config>"
         pams = {p.id: p for p in design.pams}
         unknown = [a for a in self.actuators if a not in pams]
         if unknown:
-            raise DataFileError(self.source or "<config>", f"actuators: unknown actuator id(s) {unknown}; the "
-                                                           f"design {design.name!r} has {sorted(pams)}")
-        if self.max_units:
+            raise DataFileError(where, f"actuators: unknown actuator id(s) {unknown}; the design {design.name!r} "
+                                       f"has {sorted(pams)}")
+        if self.unit_budget.max_units:
             ids = set(self.actuators or pams)
             fixed = 2 * sum(p.n_parallel for p in design.pams if p.id not in ids)
-            if 2 * len(ids) + fixed > self.max_units:
-                raise DataFileError(self.source or "<config>", f"limits.max_units: {self.max_units} PAM units "
-                                    f"cannot hold one PAM per actuator on both sides: the {len(ids)} optimised "
-                                    f"actuators need {2 * len(ids)} and the others keep {fixed}")
-        odd = [a for a in self.one_segment_actuators if a not in pams]
-        if odd and tuple(self.one_segment_actuators) != ONE_SEGMENT_ACTUATORS:   # the default list fits the v2 seed
-            raise DataFileError(self.source or "<config>", f"limits.one_segment_actuators: unknown actuator id(s) "
-                                                           f"{odd}; the design {design.name!r} has {sorted(pams)}")
-        for key in self.transmission:
-            if int(key) not in pams:
-                raise DataFileError(self.source or "<config>", f"transmission.{key}: names no actuator of the "
-                                                               f"design {design.name!r} (ids {sorted(pams)})")
-        for key in self.regions:
-            aid, _, point = str(key).partition(".")
+            if 2 * len(ids) + fixed > self.unit_budget.max_units:
+                raise DataFileError(where, f"unit_budget.max_units: {self.unit_budget.max_units} PAM units cannot "
+                                    f"hold one PAM per actuator on both sides: the {len(ids)} optimised actuators "
+                                    f"need {2 * len(ids)} and the others keep {fixed}")
+        odd = [a for a in self.limits.one_segment_actuators if a not in pams]
+        if odd and tuple(self.limits.one_segment_actuators) != ONE_SEGMENT_ACTUATORS:   # the default fits the v2 seed
+            raise DataFileError(where, f"limits.one_segment_actuators: unknown actuator id(s) {odd}; the design "
+                                       f"{design.name!r} has {sorted(pams)}")
+        for k in self.transmission:
+            if int(k) not in pams:
+                raise DataFileError(where, f"transmission.{k}: names no actuator of the design {design.name!r} "
+                                           f"(ids {sorted(pams)})")
+        for k in self.regions:
+            aid, _, point = str(k).partition(".")
             if int(aid) not in pams:
-                raise DataFileError(self.source or "<config>", f"regions.{key}: names no actuator of the design "
-                                                               f"{design.name!r} (ids {sorted(pams)})")
+                raise DataFileError(where, f"regions.{k}: names no actuator of the design {design.name!r} "
+                                           f"(ids {sorted(pams)})")
             names = [p.name for p in pams[int(aid)].points]
             if point and point not in names:
-                raise DataFileError(self.source or "<config>", f"regions.{key}: actuator {aid} has no point "
-                                                               f"{point!r} (points: {names})")
+                raise DataFileError(where, f"regions.{k}: actuator {aid} has no point {point!r} (points: {names})")
 
     def eyelet_specs(self) -> dict[int, list[dict]]:
         """The ``[eyelets]`` table as {actuator id: [{"body", "at", "gap"}, ...]} ("at" None: the segment's
         nearest approach to the bone)."""
-
         out = {}
         for k, v in self.eyelets.items():
             out[int(k)] = [{"body": e, "at": None, "gap": EYELET_GAP_M} if isinstance(e, str) else
@@ -436,7 +386,6 @@ class RunConfig:
         Raises:
             DataFileError: naming the config file and the key, where a given entry does not fit.
         """
-
         default = self.eyelets == DEFAULT_EYELETS
         ids = {p.id for p in design.pams}
         lines: list[str] = []
@@ -454,7 +403,6 @@ class RunConfig:
                     lines.append(f"eyelets: actuator {aid} {pam.name}: its route already has a point on {body}")
                     continue
                 if bones is None:
-
                     bones = BoneSet(model)
                 try:
                     new = add_eyelet(pam, model, bones, body, gap=spec["gap"], at=spec["at"])
@@ -474,14 +422,11 @@ class RunConfig:
         """The design with the ``[transmission]`` table's ratios put on its PAMs (others unchanged). A PAM whose
         ratio changes from k to k' keeps its strain at every route length
         (:func:`pamkin.robot.design.rescale_for_transmission`) — a start for the optimiser, which solves both again."""
-        import dataclasses  # noqa: PLC0415
-
-
-        for key, v in self.transmission.items():
-            p = design.pam(int(key))
-            k, k2 = p.transmission, int(v)
-            if k2 != k:
-                rest, tendon = rescale_for_transmission(p.resting_length_m, p.tendon_length_m, k, k2,
+        for k, v in self.transmission.items():
+            p = design.pam(int(k))
+            k0, k2 = p.transmission, int(v)
+            if k2 != k0:
+                rest, tendon = rescale_for_transmission(p.resting_length_m, p.tendon_length_m, k0, k2,
                                                         design.fitting_length_m)
                 p = dataclasses.replace(p, transmission=k2, resting_length_m=rest, tendon_length_m=tendon)
             design = design.replace_pam(p)
@@ -489,31 +434,127 @@ class RunConfig:
 
     def mass_penalty(self, diameter_mm: int, n_parallel: int, resting_length: float, transmission: int = 1) -> float:
         """The objective's mass penalty of ``n_parallel`` PAMs of a diameter, resting length [m] and
-        transmission, both sides: ``weight_mass`` × their estimated mass [kg] (:func:`pamkin.robot.design.unit_mass`)."""
-
-        return self.weight_mass * 2 * n_parallel * unit_mass(resting_length, diameter_mm, transmission)
+        transmission, both sides: ``[weights] mass`` × their estimated mass [kg] (:func:`pamkin.robot.design.unit_mass`)."""
+        return self.weights.mass * 2 * n_parallel * unit_mass(resting_length, diameter_mm, transmission)
 
     def one_segment_for(self, actuator: int) -> bool:
         """Whether actuator ``actuator`` is solved with the one-segment rows (``one_segment`` or listed)."""
-        return bool(self.one_segment or actuator in self.one_segment_actuators)
+        return bool(self.limits.one_segment or actuator in self.limits.one_segment_actuators)
 
     def region(self, actuator: int, point: str) -> list[float]:
         """Half-widths (x, y, z) [m] of a route point's box."""
-        for key in (f"{actuator}.{point}", str(actuator)):
-            if key in self.regions:
-                v = self.regions[key]
+        for k in (f"{actuator}.{point}", str(actuator)):
+            if k in self.regions:
+                v = self.regions[k]
                 return [float(x) for x in v] if isinstance(v, list) else [float(v)] * 3
-        return [self.region_m] * 3
+        return [self.limits.region_m] * 3
 
 
-#: TOML key of every field, as an error names it (``weights.primary``, ``pressure_Pa``).
-_KEYS = {attr: f"{sec}.{key}" for sec, keys in _SECTIONS.items() for key, attr in keys.items()}
-#: Expected type of every field.
-_KINDS: dict[str, str] = {}
-for _f in fields(RunConfig):
-    _KEYS.setdefault(_f.name, _f.name)
-    _KINDS[_f.name] = {"str": "str", "int": "int", "float": "float", "bool": "bool",
-                       "list[int]": "list[int]"}.get(str(_f.type), "other")
+#: The earlier default (before the v2 ingredients were switched on): the 1-D/2-D fit of the built-in design,
+#: capsule bone clearance, no unit budget. ``RunConfig().replace(FAST_FIT)``.
+FAST_FIT: dict = {"design": "", "first_fit.multistart": 2, "first_fit.max_solve_seconds": 0.0, "samples.random": 0,
+                  "weights.mass": 0.0, "limits.rated_force": False, "bone_rounds.enabled": False,
+                  "unit_budget.max_units": 0, "limits.sensitivity_pct": 0.0, "mount.enabled": False,
+                  "limits.one_segment_actuators": [], "rollers.enabled": False, "eyelets": {}}
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _kind(f) -> str:
+    return str(f.type)
+
+
+def _check_value(where: str, name: str, f, value) -> None:
+    """One key's type and range (from its field's type and metadata)."""
+    kind, meta = _kind(f), f.metadata
+
+    def bad(msg: str) -> DataFileError:
+        return DataFileError(where, f"{name}: {msg}")
+
+    if kind == "int" and not _is_int(value):
+        raise bad(f"must be an integer, got {value!r}")
+    if kind == "float" and not _is_number(value):
+        raise bad(f"must be a finite number, got {value!r}")
+    if kind == "bool" and not isinstance(value, bool):
+        raise bad(f"must be true or false, got {value!r}")
+    if kind == "str" and not isinstance(value, str):
+        raise bad(f"must be a string, got {value!r}")
+    if kind == "list[int]" and not (isinstance(value, list) and all(_is_int(v) for v in value)):
+        raise bad(f"must be a list of integers, e.g. [1, 2], got {value!r}")
+    lo, hi = meta.get("lo"), meta.get("hi")
+    if kind in ("int", "float") and ((lo is not None and value < lo) or (hi is not None and value > hi)):
+        unit = f" {meta['unit']}" if meta.get("unit") else ""
+        rng = (f"lie in [{lo:g}, {hi:g}]" if lo is not None and hi is not None else
+               f"be >= {lo:g}" if lo is not None else f"be <= {hi:g}")
+        raise bad(f"must {rng}{unit}, got {value!r}")
+    if meta.get("choices") and value not in meta["choices"]:
+        raise bad(f"must be one of {list(meta['choices'])}, got {value!r}")
+
+
+def _check_cross(cfg: RunConfig, where: str) -> None:
+    """Rules between keys."""
+    def bad(k: str, msg: str) -> DataFileError:
+        return DataFileError(where, f"{k}: {msg}")
+
+    d = cfg.first_fit.diameters_mm
+    if not d or any(x not in (10, 20, 40) for x in d) or len(set(d)) != len(d):
+        raise bad("first_fit.diameters_mm", f"must be a non-empty subset of [10, 20, 40] [mm], got {d}")
+    for k, ids in (("actuators", cfg.actuators), ("limits.one_segment_actuators", cfg.limits.one_segment_actuators)):
+        if any(a < 1 for a in ids) or len(set(ids)) != len(ids):
+            raise bad(k, f"must be distinct actuator ids >= 1, got {ids}")
+    if cfg.force_model == "v0" and cfg.pressure_Pa != 620e3:
+        raise bad("force_model", "'v0' is the thesis's 620 kPa table: pressure_Pa must be 620000")
+    if cfg.weights.primary + cfg.weights.secondary <= 0:
+        raise bad("weights", "primary and secondary must not both be 0 (nothing to fit)")
+    for section in ("clearance", "rollers"):
+        if getattr(cfg, section).enabled and not cfg.bone_rounds.enabled:
+            raise bad(f"{section}.enabled", "needs bone_rounds.enabled = true (the stage works on the bone meshes)")
+
+
+def _check_tables(cfg: RunConfig, where: str) -> None:
+    """The per-actuator tables ``[regions]``, ``[eyelets]``, ``[transmission]``."""
+    def bad(k: str, msg: str) -> DataFileError:
+        return DataFileError(where, f"{k}: {msg}")
+
+    for name in TABLES:
+        if not isinstance(getattr(cfg, name), dict):
+            raise bad(name, "must be a table")
+    for k, v in cfg.regions.items():
+        if not re.fullmatch(r"[0-9]+(\.[A-Za-z0-9_]+)?", str(k)):
+            raise bad(f"regions.{k}", "keys are an actuator id (\"6\") or actuator.point (\"6.p2\")")
+        vals = v if isinstance(v, list) else [v]
+        if len(vals) not in (1, 3) or any(not _is_number(x) or x < 0 for x in vals) \
+                or (isinstance(v, list) and len(vals) != 3):
+            raise bad(f"regions.{k}", f"a non-negative number or 3 non-negative numbers [m], got {v!r}")
+    for k, v in cfg.eyelets.items():
+        if not re.fullmatch(r"[0-9]+", str(k)):
+            raise bad(f"eyelets.{k}", "keys are actuator ids (\"19\")")
+        items = v if isinstance(v, list) else [v]
+        if not items:
+            raise bad(f"eyelets.{k}", "a body name, a table {body, at, gap} or a list of those, got []")
+        for e in items:
+            if isinstance(e, str) and e:
+                continue
+            if not isinstance(e, dict) or not isinstance(e.get("body"), str) or not e["body"] \
+                    or set(e) - {"body", "at", "gap"}:
+                raise bad(f"eyelets.{k}", f"a body name (\"talus_r\"), a table {{body, at, gap}} or a list of "
+                                          f"those, got {e!r}")
+            if "at" in e and not (_is_number(e["at"]) and 0 < e["at"] < 1):
+                raise bad(f"eyelets.{k}", f"'at' is a fraction of the segment within (0, 1), got {e['at']!r}")
+            if "gap" in e and not (_is_number(e["gap"]) and 0 < e["gap"] <= 0.018):
+                raise bad(f"eyelets.{k}", f"'gap' is a distance off the bone in (0, 0.018] m, got {e['gap']!r}")
+    for k, v in cfg.transmission.items():
+        if not re.fullmatch(r"[0-9]+", str(k)):
+            raise bad(f"transmission.{k}", "keys are actuator ids (\"4\")")
+        if isinstance(v, bool) or v not in TRANSMISSIONS:
+            raise bad(f"transmission.{k}", f"must be one of {TRANSMISSIONS} (1: direct, k: a k:1 pulley block), "
+                                           f"got {v!r}")
 
 
 def load_config(path: str | Path | None) -> RunConfig:
@@ -529,9 +570,11 @@ def load_config(path: str | Path | None) -> RunConfig:
         return cfg
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise DataFileError(str(path), "file not found") from None
+    except IsADirectoryError:
+        raise DataFileError(str(path), "is a folder, not a TOML file") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise DataFileError(str(path), f"not valid TOML: {e}") from None
     return config_from_dict(data, str(path))
@@ -539,28 +582,33 @@ def load_config(path: str | Path | None) -> RunConfig:
 
 def config_from_dict(data: dict, source: str) -> RunConfig:
     """A run description from its TOML form as a mapping (``source``: the file named in errors)."""
-    kwargs: dict = {}
-    top = {f.name for f in fields(RunConfig)} - {"source"} - {n for s in _SECTIONS.values() for n in s.values()}
-    for key, value in data.items():
-        if key in _SECTIONS:
+    cfg = RunConfig(source=source)
+    top = {f.name for f in fields(RunConfig) if not f.metadata.get("internal")}
+    for name, value in data.items():
+        if name in SECTIONS:
             if not isinstance(value, dict):
-                raise DataFileError(source, f"[{key}] must be a table")
+                raise DataFileError(source, f"[{name}] must be a table")
+            known = {f.name for f in fields(SECTIONS[name])}
             for k, v in value.items():
-                if k not in _SECTIONS[key]:
-                    raise DataFileError(source, f"unknown key {key}.{k}; known: {sorted(_SECTIONS[key])}")
-                kwargs[_SECTIONS[key][k]] = v
-        elif key in ("regions", "transmission", "eyelets"):
+                if k not in known:
+                    moved = MOVED.get(f"{name}.{k}")
+                    raise DataFileError(source, f"unknown key {name}.{k}" + (f" (moved: it is {moved} now)" if moved
+                                                else f"; [{name}] has {sorted(known)}"))
+                setattr(getattr(cfg, name), k, copy.deepcopy(v))
+        elif name in TABLES:
             if not isinstance(value, dict):
-                raise DataFileError(source, f"[{key}] must be a table")
-            kwargs[key] = dict(value)
-        elif key in top:
-            kwargs[key] = value
+                raise DataFileError(source, f"[{name}] must be a table")
+            setattr(cfg, name, copy.deepcopy(value))
+        elif name in top:
+            setattr(cfg, name, copy.deepcopy(value))
         else:
-            raise DataFileError(source, f"unknown key {key!r}; known: {sorted(top | set(_SECTIONS))}")
-    try:
-        cfg = RunConfig(**kwargs, source=source)
-    except TypeError as e:
-        raise DataFileError(source, str(e)) from None
+            moved = MOVED.get(name) or next((MOVED[f"{name}.{k}"] for k in (value if isinstance(value, dict) else {})
+                                             if f"{name}.{k}" in MOVED), None)
+            hint = f" (moved: it is {moved} now)" if moved else ""
+            kind = "section" if isinstance(value, dict) else "key"
+            raise DataFileError(source, f"unknown {kind} {name!r}{hint}; known: top-level "
+                                        f"{sorted(top - set(SECTIONS) - set(TABLES))}, sections {sorted(SECTIONS)}, "
+                                        f"tables {list(TABLES)}")
     cfg.validate()
     return cfg
 
@@ -568,65 +616,119 @@ def config_from_dict(data: dict, source: str) -> RunConfig:
 def config_to_dict(cfg: RunConfig) -> dict:
     """The TOML form of a run description as a mapping (what :func:`config_from_dict` reads back)."""
     out: dict = {}
-    by_field = {f: (sec, key) for sec, keys in _SECTIONS.items() for key, f in keys.items()}
     for f in fields(RunConfig):
-        if f.name == "source":
+        if f.metadata.get("internal"):
             continue
-        value = copy.deepcopy(getattr(cfg, f.name))
-        if f.name in by_field:
-            sec, key = by_field[f.name]
-            out.setdefault(sec, {})[key] = value
-        else:
-            out[f.name] = value
+        value = getattr(cfg, f.name)
+        out[f.name] = dataclasses.asdict(value) if f.name in SECTIONS else copy.deepcopy(value)
     return out
 
 
-def _default_text(f) -> str:
-    value = f.default_factory() if f.default_factory is not MISSING else f.default  # type: ignore[misc]
-    return repr(value).replace("'", '"').replace("True", "true").replace("False", "false")
+def _default(f) -> Any:
+    return f.default_factory() if f.default_factory is not MISSING else f.default
+
+
+def _toml_text(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, dict):
+        return "{}" if not value else "(see the text)"
+    return repr(value)
+
+
+def _rows(cls) -> list[str]:
+    out = []
+    for f in fields(cls):
+        if (cls is RunConfig and f.name in SECTIONS) or f.metadata.get("internal"):
+            continue
+        meta = f.metadata
+        rng = ""
+        if meta.get("choices"):
+            rng = " / ".join(f"`{c}`" for c in meta["choices"])
+        elif meta.get("lo") is not None or meta.get("hi") is not None:
+            lo = "" if meta.get("lo") is None else f"{meta['lo']:g}"
+            hi = "" if meta.get("hi") is None else f"{meta['hi']:g}"
+            rng = f"{lo} .. {hi}".strip()
+        kind = "table" if f.name in TABLES else _kind(f)
+        doc = meta.get("doc", "").replace("|", "\\|")
+        out.append(f"| `{f.name}` | {kind} | `{_toml_text(_default(f))}` | {rng} | {doc} |")
+    return out
 
 
 def config_reference_markdown() -> str:
-    """The reference page of every configuration key (Markdown): section, key, type, default and description,
-    read from this module (the TOML example of its docstring and :class:`RunConfig`'s fields)."""
-    doc = _key_docs()
-    by_field = {f: (sec, key) for sec, keys in _SECTIONS.items() for key, f in keys.items()}
-    rows: dict[str, list[str]] = {}
-    for f in fields(RunConfig):
-        if f.name == "source":
-            continue
-        sec, key = by_field.get(f.name, ("", f.name))
-        if f.name in ("regions", "transmission", "eyelets"):
-            sec, key = f.name, "(table)"
-        text = doc.get((sec, key), "").replace("|", "\\|")
-        kind = _KINDS.get(f.name, "table")
-        rows.setdefault(sec, []).append(f"| `{key}` | {kind} | `{_default_text(f)}` | {text} |")
-    out = ["Every key of a `pamkin optimize` TOML run description, by section (generated from "
-           "`pamkin.optimize.config`). Every key is optional; an unknown key or section, a wrong type or a value "
-           "out of range stops the run before any solve with an error naming the file and the key (exit 2).", ""]
-    for sec in sorted(rows, key=lambda s: (s != "", s)):
-        out += [f"## {'Top level' if not sec else '[' + sec + ']'}", "", "| key | type | default | description |",
-                "|---|---|---|---|", *rows[sec], ""]
+    """The reference page of every configuration key (Markdown), generated from the fields of
+    :class:`RunConfig` and its sections: key, type, default, allowed range and description."""
+    head = ["| key | type | default | range | description |", "|---|---|---|---|---|"]
+    out = ["Every key of a `pamkin optimize` TOML run description (generated from `pamkin.optimize.config`). Every "
+           "key is optional; an unknown key or section, a wrong type or a value out of range stops the run before "
+           "any solve with an error naming the file and the key (exit 2). Sections mirror "
+           "`pamkin.optimize.config.RunConfig` one to one (`[mount] cost` is `cfg.mount.cost`).", "",
+           "## Top level and per-actuator tables", "", *head, *_rows(RunConfig), ""]
+    for name, cls in SECTIONS.items():
+        out += [f"## [{name}]", "", (cls.__doc__ or "").split(":", 1)[-1].strip(), "", *head, *_rows(cls), ""]
     return "\n".join(out)
 
 
-def _key_docs() -> dict[tuple[str, str], str]:
-    """(section, key) -> the description of the key in the module docstring's TOML example."""
-    out: dict[tuple[str, str], str] = {}
-    section, last = "", None
-    for line in (__doc__ or "").splitlines():
-        text = line.strip()
-        m = re.match(r"^\[(\w+)\]\s*(#\s*(.*))?$", text)
-        if m:
-            section, last = m.group(1), None
-            if m.group(3):
-                out[(section, "(table)")] = m.group(3)
-                last = (section, "(table)")
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + "}"
+    return repr(value)
+
+
+def config_toml(cfg: RunConfig | None = None) -> str:
+    """A run description as TOML text: every key with its value (default: the defaults) and its description
+    as a comment — ``examples/optimize_v2.toml`` is this text of the defaults."""
+    cfg = cfg or RunConfig()
+
+    def block(obj) -> list[str]:
+        out = []
+        for f in fields(obj):
+            if (obj is cfg and (f.name in SECTIONS or f.name in TABLES)) or f.metadata.get("internal"):
+                continue
+            out += [f"# {line}" for line in _wrap(f.metadata.get("doc", ""))]
+            out.append(f"{f.name} = {_toml_value(getattr(obj, f.name))}")
+        return out
+
+    lines = block(cfg)
+    for name in SECTIONS:
+        lines += ["", f"[{name}]", *[f"# {line}" for line in _wrap((SECTIONS[name].__doc__ or '').split(':', 1)[-1].strip())],
+                  *block(getattr(cfg, name))]
+    for name in TABLES:
+        table = getattr(cfg, name)
+        lines += ["", f"[{name}]"] + [f'"{k}" = {_toml_value(v)}' for k, v in table.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _wrap(text: str, width: int = 108) -> list[str]:
+    words, out, line = text.split(), [], ""
+    for w in words:
+        if line and len(line) + 1 + len(w) > width:
+            out.append(line)
+            line = w
+        else:
+            line = f"{line} {w}".strip()
+    return out + ([line] if line else [])
+
+
+def config_changes(cfg: RunConfig, base: RunConfig | None = None) -> dict[str, Any]:
+    """The keys where ``cfg`` differs from ``base`` (default: the defaults), dotted as in :meth:`RunConfig.replace`."""
+    base = base or RunConfig()
+    out: dict[str, Any] = {}
+    for f in fields(RunConfig):
+        if f.metadata.get("internal"):
             continue
-        m = re.match(r"^(\w+)\s*=\s*[^#]*(#\s*(.*))?$", text)
-        if m and line.startswith("    ") and not line.startswith("     "):
-            last = (section, m.group(1))
-            out[last] = (m.group(3) or "").strip()
-        elif text.startswith("#") and last is not None:
-            out[last] = (out[last] + " " + text.lstrip("# ").strip()).strip()
+        a, b = getattr(cfg, f.name), getattr(base, f.name)
+        if f.name in SECTIONS:
+            out.update({f"{f.name}.{g.name}": getattr(a, g.name) for g in fields(a)
+                        if getattr(a, g.name) != getattr(b, g.name)})
+        elif a != b:
+            out[f.name] = a
     return out

@@ -49,7 +49,7 @@ class RunContext:
         human: Gait2392 (:func:`pamkin.gait2392`).
         rom: Range of motion of the right side [rad, m].
         data: Per optimised actuator (index ``k``): its sample data.
-        bones: The bone meshes (:class:`pamkin.human.bones.BoneSet`) where ``cfg.bone_mesh``, else None.
+        bones: The bone meshes (:class:`pamkin.human.bones.BoneSet`) where ``cfg.bone_rounds.enabled``, else None.
         validation: ``(q, T)``: the validation poses and the human torques there [N·m], made once per run.
         warm_ids: Actuator ids whose warm start is tried first.
         fit_only: The first phase only fits (a unit budget chooses the sizes before the bone rounds).
@@ -100,14 +100,14 @@ class RunContext:
         """Seed location (or offset) and box half-widths [m] of every route point of ``pam``."""
         cfg = self.cfg
         seed = [np.array(getattr(p, "location", (0.0, 0.0, 0.0)), float) for p in pam.points]
-        regions = [np.array(cfg.region(pam.id, p.name), float) if is_free(p) or cfg.move_moving_points
+        regions = [np.array(cfg.region(pam.id, p.name), float) if is_free(p) or cfg.limits.move_moving_points
                    else np.zeros(3) for p in pam.points]
         return seed, regions
 
     def bracket(self, pam: Pam, seed: list[np.ndarray], regions: list[np.ndarray]) -> dict | None:
-        """The bone-distance splines of ``pam``'s points for the fit (``[limits] bracket_fit``; built once per
+        """The bone-distance splines of ``pam``'s points for the fit (``[bone_rounds] bracket_fit``; built once per
         process and route box, :func:`optimize.bracket.bracket_splines`), or None."""
-        if not (self.cfg.bone_mesh and self.cfg.bracket_fit):
+        if not (self.cfg.bone_rounds.enabled and self.cfg.bone_rounds.bracket_fit):
             return None
         from pamkin.optimize.bracket import bracket_splines  # noqa: PLC0415  (CasADi)
 

@@ -54,14 +54,14 @@ def rated_bound(diameter: int) -> float:
 
 def limit_rows(cfg, diameter: int, strain, unit_force, kmax) -> list[tuple]:
     """The strain and force limits of one PAM as rows ``(family, g, lower, upper)`` with lower ≤ g ≤ upper:
-    contraction ≤ kmax (scaled) and stretch ≤ Festo's pretension, and with ``cfg.rated_force`` force per
+    contraction ≤ kmax (scaled) and stretch ≤ Festo's pretension, and with ``cfg.limits.rated_force`` force per
     PAM ≤ 98 % of Festo's rating and contraction ≤ Festo's maximum, each less its margin. ``strain``,
     ``unit_force`` [N] and ``kmax`` are numpy arrays or CasADi expressions alike: the one definition of
     these limits for the problem (:class:`optimize.problem.ActuatorProblem`) and for :func:`limit_excess`."""
-    pre = max(cfg.pretension_scale * festo.max_pretension(diameter) - STRAIN_MARGIN, 0.0)
-    rows = [(CONTRACTION_KMAX, strain - (cfg.kmax_scale * kmax - STRAIN_MARGIN), -np.inf, 0.0),
+    pre = max(cfg.limits.pretension_scale * festo.max_pretension(diameter) - STRAIN_MARGIN, 0.0)
+    rows = [(CONTRACTION_KMAX, strain - (cfg.limits.kmax_scale * kmax - STRAIN_MARGIN), -np.inf, 0.0),
             (STRETCH, strain, -pre, np.inf)]
-    if cfg.rated_force:
+    if cfg.limits.rated_force:
         rows.append((RATED, unit_force - rated_bound(diameter), -np.inf, 0.0))
         # Festo's permissible contraction (0.25) is below the force model's kmax for 20 and 40 mm
         rows.append((CONTRACTION_FESTO, strain, -np.inf, festo.max_contraction(diameter) - STRAIN_MARGIN))

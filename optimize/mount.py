@@ -11,7 +11,7 @@ problem (objective, strain, rated-force and sensitivity rows at its samples) ove
 and the tendon length t only, with the PAM on that segment at every constraint sample, then checks the
 strain and force limits and the segment on the held-out limit-check poses (:mod:`optimize.limit_check`;
 a miss tightens the rows once and solves again). The result replaces the spanning PAM when the root of
-the objective grows by at most ``cfg.mount_cost``; otherwise the run names the PAM and the reason:
+the objective grows by at most ``cfg.mount.cost``; otherwise the run names the PAM and the reason:
 
 * **out of reach**: the PAM's excursion needs a resting length of at least ΔL / (k (c + s)) (k = the
   transmission, :mod:`pamkin.robot.design`; c = Festo's
@@ -77,9 +77,9 @@ def reach_bound(L: np.ndarray, seg_min: float, diameter: int, cfg, fitting: floa
     lower) and s the stretch limit; the most: the segment at its shortest less both fittings and
     :data:`~optimize.problem.SEGMENT_MARGIN`."""
     most = seg_min - 2 * fitting - SEGMENT_MARGIN
-    km = cfg.kmax_scale * float(festo.kmax(max(most, 1e-3), diameter, model=cfg.force_model))
-    c = min(km, festo.max_contraction(diameter)) if cfg.rated_force else km
-    s = cfg.pretension_scale * festo.max_pretension(diameter)
+    km = cfg.limits.kmax_scale * float(festo.kmax(max(most, 1e-3), diameter, model=cfg.force_model))
+    c = min(km, festo.max_contraction(diameter)) if cfg.limits.rated_force else km
+    s = cfg.limits.pretension_scale * festo.max_pretension(diameter)
     return float((np.max(L) - np.min(L)) / (transmission * (c + s))), float(most)
 
 
@@ -132,9 +132,9 @@ class _MountSolver:
 
 def cost_accepted(cost: float, cfg, failing, spanning, mounted) -> tuple[bool, str | None]:
     """Whether a mount at fit ``cost`` (growth of the objective's root) is kept, and the reason where it is over
-    ``cfg.mount_cost``: ``failing(spanning(), mounted())`` (the run's ``mount_failing`` / ``mount_passing`` rules;
+    ``cfg.mount.cost``: ``failing(spanning(), mounted())`` (the run's ``mount_failing`` / ``mount_passing`` rules;
     ``spanning`` and ``mounted`` make the two PAMs only when asked), None where there is no such rule."""
-    if cost <= cfg.mount_cost:
+    if cost <= cfg.mount.cost:
         return True, None
     reason = failing(spanning(), mounted()) if failing is not None else None
     return reason is not None, reason
@@ -153,8 +153,8 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam, failing=Non
         rom: The range of motion of the held-out checks.
         solution_pam: ``(pam, solution) -> Pam`` (the run's saved form of a solution).
         failing: Optional ``(spanning Pam, mounted Pam) -> str | None``: a reason to mount the PAM although
-            the fit cost exceeds ``mount_cost`` (``cfg.mount_failing``: its fit already fails the audit's fit
-            limits; ``cfg.mount_passing``: on one segment it still passes them; either way no fit count is at
+            the fit cost exceeds ``mount_cost`` (``cfg.mount.failing``: its fit already fails the audit's fit
+            limits; ``cfg.mount.passing``: on one segment it still passes them; either way no fit count is at
             stake), or None.
 
     Returns:
@@ -245,13 +245,13 @@ def mount_stage(prob, best, pam: Pam, cfg, model, rom, solution_pam, failing=Non
         info.update(reason="fit cost",
                     line=f"on one straight segment ({names[j]}, resting length {best.rest_length:.3f} -> "
                          f"{sol.rest_length:.3f} m) its fit would get worse: objective {j_before:.4g} -> "
-                         f"{sol.objective:.4g} (root +{cost:.3f} > mount_cost {cfg.mount_cost:g}); left spanning the route")
+                         f"{sol.objective:.4g} (root +{cost:.3f} > mount_cost {cfg.mount.cost:g}); left spanning the route")
         return best, info
     info.update(mounted=True, reason="",
                 line=f"on one straight segment {names[j]}: resting length {best.rest_length:.3f} -> "
                      f"{sol.rest_length:.3f} m, tendon {max(best.tendon_length, 0.0):.3f} -> "
                      f"{max(sol.tendon_length, 0.0):.3f} m, objective {j_before:.4g} -> {sol.objective:.4g}"
-                     + (f" (root +{cost:.3f} > mount_cost {cfg.mount_cost:g}, accepted: {accepted})" if accepted else ""))
+                     + (f" (root +{cost:.3f} > mount_cost {cfg.mount.cost:g}, accepted: {accepted})" if accepted else ""))
     if accepted:
         info["failing_fit"] = accepted
     return sol, info
@@ -277,7 +277,7 @@ BLOCK_REASONS = ("out of reach", "infeasible")
 def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam, blocked=frozenset(),
                 failing=None) -> tuple[object, object, dict]:
     """A PAM out of reach of one straight segment of its fixed route, or infeasible there (``info`` from
-    :func:`mount_stage`, :data:`BLOCK_REASONS`), on a pulley block instead (``[limits] mount_blocks``): a
+    :func:`mount_stage`, :data:`BLOCK_REASONS`), on a pulley block instead (``[mount] blocks``): a
     2:1 block, and where no diameter mounts on it a 3:1 block (:data:`BLOCKS`; not for a diameter that fit
     the 2:1 block at a fit cost) — the same route and
     parallel count, the same or a larger diameter, resting length and tendon solved again with the PAM on
@@ -296,7 +296,7 @@ def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam,
 
     from pamkin.optimize.problem import ActuatorProblem  # noqa: PLC0415
 
-    if not (cfg.mount_blocks and info.get("reason") in BLOCK_REASONS and prob.k == 1 and best.success):
+    if not (cfg.mount.blocks and info.get("reason") in BLOCK_REASONS and prob.k == 1 and best.success):
         return best, prob, info
 
     direct = float(best.objective) + cfg.mass_penalty(best.diameter_mm, best.n_parallel, best.rest_length, 1)
@@ -304,7 +304,7 @@ def mount_block(prob, best, info: dict, pam: Pam, cfg, model, rom, solution_pam,
     costly: set[int] = set()        # diameters that fit a smaller block only at a fit cost: not tried again
     for k in BLOCKS:
         these = []
-        for d in [d for d in cfg.diameters_mm if d >= prob.d and d not in costly]:
+        for d in [d for d in cfg.first_fit.diameters_mm if d >= prob.d and d not in costly]:
             pk = dataclasses.replace(pam, transmission=k, diameter_mm=d)
             p2 = ActuatorProblem(dataclasses.replace(prob.data, pam=pk), cfg, d, prob.seed, prob.regions,
                                  prob.relax, prob.bracket or None)
@@ -371,7 +371,7 @@ def mount_rounds(prob, best, info: dict, pam: Pam, cfg, cuts, model, rom, soluti
     reshaping the moment arms) within their bone rows and brackets. The result replaces ``best`` when it is
     feasible, no deeper into bone (and no point inside its bone), keeps the strain and force limits and the
     segment on the held-out limit-check poses, and the root of the fit objective grows by at most
-    ``cfg.mount_cost`` over ``best``'s.
+    ``cfg.mount.cost`` over ``best``'s.
 
     Returns:
         ``(solution, problem, info)``: the mounted solution and its problem, or ``best``, ``prob`` and
@@ -382,7 +382,7 @@ def mount_rounds(prob, best, info: dict, pam: Pam, cfg, cuts, model, rom, soluti
     if j is None or not best.success:
         return best, prob, info
     if reason == "fit cost":
-        if info["cost"] > ROUNDS_COST_FACTOR * cfg.mount_cost:
+        if info["cost"] > ROUNDS_COST_FACTOR * cfg.mount.cost:
             return best, prob, info
     elif reason == "out of reach":
         if info["least_rest_m"] > ROUNDS_REACH * info["segment_holds_m"]:
@@ -408,7 +408,7 @@ def mount_rounds(prob, best, info: dict, pam: Pam, cfg, cuts, model, rom, soluti
     limits = (p1.lbg.copy(), p1.ubg.copy())
     log: list[str] = []
     sol, cost, why, accepted = start, np.inf, "no feasible round", None
-    target = np.sqrt(max(best.objective, 0.0)) + cfg.mount_cost       # the root objective to reach
+    target = np.sqrt(max(best.objective, 0.0)) + cfg.mount.cost       # the root objective to reach
 
     def slow(previous, latest) -> bool:
         left = np.sqrt(max(latest.objective, 0.0)) - target
@@ -434,7 +434,7 @@ def mount_rounds(prob, best, info: dict, pam: Pam, cfg, cuts, model, rom, soluti
                                          lambda: cand)
             if not ok:
                 why = (f"fit cost: objective {best.objective:.4g} -> {sol.objective:.4g} "
-                       f"(root +{cost:.3f} > mount_cost {cfg.mount_cost:g})")
+                       f"(root +{cost:.3f} > mount_cost {cfg.mount.cost:g})")
                 break
             excess = limit_excess(cand, model, q_check, cfg, f)
             margin = held_out_margin(cand, model, q_check, int(j), f)
@@ -463,7 +463,7 @@ def mount_rounds(prob, best, info: dict, pam: Pam, cfg, cuts, model, rom, soluti
                     f"points up to {1e3 * moved:.1f} mm): resting length {best.rest_length:.3f} -> "
                     f"{sol.rest_length:.3f} m, tendon {max(best.tendon_length, 0.0):.3f} -> "
                     f"{max(sol.tendon_length, 0.0):.3f} m, objective {best.objective:.4g} -> {sol.objective:.4g} "
-                    + (f"(root +{cost:.3f} > mount_cost {cfg.mount_cost:g}, accepted: {accepted}) " if accepted else "")
+                    + (f"(root +{cost:.3f} > mount_cost {cfg.mount.cost:g}, accepted: {accepted}) " if accepted else "")
                     + f"(was {reason}: {info['line']})")
     if accepted:
         out["failing_fit"] = accepted

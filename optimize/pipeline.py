@@ -55,10 +55,10 @@ from pamkin.optimize.stages import seed as seed_stage
 from pamkin.optimize.store import RunStore
 from pamkin.optimize.verify import summarize
 
-import pamkin
 from pamkin.audit.compare import finite_or_none
 from pamkin.errors import PamkinError
 from pamkin.human.bones import BoneSet
+from pamkin.human.model import gait2392
 from pamkin.human.rom import load_rom
 from pamkin.human.urdf import atomic_write, render_robot_urdf
 from pamkin.robot.design import Design, save_design
@@ -80,25 +80,25 @@ STAGES: tuple[Stage, ...] = (
     Stage("first_fit", first_fit.run, lambda c: True,
           "every actuator's fit: outer loop over Festo diameter and parallel count, multistart "
           "(without a unit budget, each actuator's bone rounds and one-segment stage follow at once)"),
-    Stage("unit_budget", unit_budget.run, lambda c: c.max_units > 0,
+    Stage("unit_budget", unit_budget.run, lambda c: c.unit_budget.max_units > 0,
           "every actuator's diameter and parallel count chosen together within the unit budget"),
-    Stage("bone_rounds", bone_rounds.run, lambda c: c.max_units > 0,
+    Stage("bone_rounds", bone_rounds.run, lambda c: c.unit_budget.max_units > 0,
           "the chosen size of every actuator through the bone-mesh rounds and the one-segment stage"),
-    Stage("resize", resize.run, lambda c: c.max_units > 0 and c.bone_mesh and c.resize_above > 0,
+    Stage("resize", resize.run, lambda c: c.unit_budget.max_units > 0 and c.bone_rounds.enabled and c.resize.above > 0,
           "other diameters (and pulley blocks throughout) for actuators the bone rounds left with a poor fit"),
-    Stage("reallocate", reallocate.run, lambda c: c.max_units > 0 and c.bone_mesh and c.reallocate,
+    Stage("reallocate", reallocate.run, lambda c: c.unit_budget.max_units > 0 and c.bone_rounds.enabled and c.reallocate.enabled,
           "PAM units moved from actuators failing both fit limits to ones they make pass"),
-    Stage("mass", mass.run, lambda c: c.max_mass_kg > 0,
+    Stage("mass", mass.run, lambda c: c.mass.max_kg > 0,
           "pulley blocks taken off again while the robot's estimated mass is over its budget"),
-    Stage("walking", walking.run, lambda c: c.max_units > 0 and c.walking_min > 0,
+    Stage("walking", walking.run, lambda c: c.unit_budget.max_units > 0 and c.walking.min_fraction > 0,
           "the walking trial's pressure plans; actuators at the pressure limit re-sized within the budget"),
-    Stage("clearance", clearance.run, lambda c: c.bone_mesh and c.pam_clearance,
+    Stage("clearance", clearance.run, lambda c: c.bone_rounds.enabled and c.clearance.enabled,
           "routes that hit another PAM's body solved again with the bodies as obstacles"),
-    Stage("rollers", rollers.run, lambda c: c.bone_mesh and c.rollers,
+    Stage("rollers", rollers.run, lambda c: c.bone_rounds.enabled and c.rollers.enabled,
           "rollers (cable guides on bone) for actuators failing a fit limit"),
-    Stage("detours", detours.run, lambda c: c.bone_mesh and c.detours,
+    Stage("detours", detours.run, lambda c: c.bone_rounds.enabled and c.detours.enabled,
           "same-body segments into their bone carried round it by via points"),
-    Stage("pam_ends", pam_ends.run, lambda c: c.mount and c.pam_ends,
+    Stage("pam_ends", pam_ends.run, lambda c: c.mount.enabled and c.pam_ends.enabled,
           "each PAM's segment and end chosen for the fewest intersecting PAM pairs"),
 )
 #: Files of a run folder a new run writes (an existing folder holding any of them is not overwritten).
@@ -108,9 +108,9 @@ RUN_FILES = ("design.yaml", "summary.json", "log.txt", "before_after.png", "conf
 def make_context(seed: Design, cfg: RunConfig, warm_ids: set[int], stream=None, executor=None,
                  store: RunStore | None = None) -> RunContext:
     """The run's context for ``seed`` (right side): Gait2392, the seed's range of motion, every selected
-    actuator's sample data, the bone meshes (``cfg.bone_mesh``) and the validation poses (made here, before any
+    actuator's sample data, the bone meshes (``cfg.bone_rounds.enabled``) and the validation poses (made here, before any
     worker starts: a forked worker that computes them itself hangs in the threads this process started)."""
-    human = pamkin.gait2392()
+    human = gait2392()
     rom = load_rom(seed.rom, "r")
     ids = cfg.actuators or [p.id for p in seed.pams]
     unknown = [i for i in ids if i not in {p.id for p in seed.pams}]
@@ -118,10 +118,10 @@ def make_context(seed: Design, cfg: RunConfig, warm_ids: set[int], stream=None, 
         raise PamkinError(f"unknown actuator id(s) {unknown}")
     data = [actuator_data(seed.pam(i), human, rom, cfg, seed.fitting_length_m) for i in ids]
     ctx = RunContext(cfg, seed, human, rom, data, warm_ids=set(warm_ids), stream=stream, executor=executor,
-                     store=store, n_cap=cfg.max_parallel)
-    if cfg.mount and (cfg.mount_failing or cfg.mount_passing):
+                     store=store, n_cap=cfg.first_fit.max_parallel)
+    if cfg.mount.enabled and (cfg.mount.failing or cfg.mount.passing):
         ctx.validation_set()
-    if cfg.bone_mesh:
+    if cfg.bone_rounds.enabled:
         ctx.bones = BoneSet(human)
     return ctx
 
@@ -190,8 +190,8 @@ def run(cfg: RunConfig, out_dir: Path, apply: str | os.PathLike | None = None, s
     if resume:
         print(f"resuming {out_dir}: {store.stored()} finished tasks stored", file=stream, flush=True)
     log = [f"pamkin optimize: seed design {seed.name!r} ({seed.path}), config {cfg.source or 'defaults'}",
-           f"workers {cfg.workers}, multistart {cfg.multistart}, diameters {cfg.diameters_mm}, "
-           f"max_parallel {cfg.max_parallel}, force model {cfg.force_model}, pressure {cfg.pressure_Pa:.0f} Pa",
+           f"workers {cfg.workers}, multistart {cfg.first_fit.multistart}, diameters {cfg.first_fit.diameters_mm}, "
+           f"max_parallel {cfg.first_fit.max_parallel}, force model {cfg.force_model}, pressure {cfg.pressure_Pa:.0f} Pa",
            *eyelets]
     results, ctx = solve_all(seed, cfg, stream, warm_ids, executor, store)
     log.extend((ctx.walking or {}).get("log", []))

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-import pamkin
+from pamkin.human.model import gait2392
 from pamkin.human.rom import load_rom
 from pamkin.human.urdf import atomic_write
 from pamkin.robot.biped import PamRobot, robot_skeleton
@@ -25,7 +25,7 @@ def before_after_plot(seed: Design, new: Design, path: Path, n: int = 61, seed_l
     import matplotlib.pyplot as plt  # noqa: PLC0415
 
 
-    human = pamkin.gait2392()
+    human = gait2392()
     skel = robot_skeleton()
     rb, ra = PamRobot(seed, skel, sides=("r",)), PamRobot(new, skel, sides=("r",))
     rom = load_rom(new.rom, "r")

@@ -172,7 +172,7 @@ class ActuatorProblem:
         for i in self.free:
             sc = np.maximum(np.asarray(regions[i], float), 1e-3)
             reg = reg + ca.sumsqr((loc[i] - _dm(self.seed[i])) / _dm(sc))
-        self.J = J + cfg.regularization * reg
+        self.J = J + cfg.weights.regularization * reg
         # constraints
         g, lbg, ubg, fam = [], [], [], []
         capsule_rows: list[int] = []     # indices of the bone-capsule rows (the bone-mesh rounds replace them)
@@ -181,12 +181,12 @@ class ActuatorProblem:
         for family, expr, lo, hi in limit_rows(cfg, diameter, eps_c, self.unit_force[0, ci], self.kmax):
             g.append(expr.T); lbg += [lo] * len(ci); ubg += [hi] * len(ci)
             fam += [family] * len(ci)
-        if cfg.sensitivity_pct > 0 and "sensitivity" not in relax:
+        if cfg.limits.sensitivity_pct > 0 and "sensitivity" not in relax:
             # a 1 mm error of any body-fixed attachment point moves the primary torque on its 1-D sweep
             # by at most sensitivity_pct % of the human peak: |∂τ/∂ℓ_i| · 1 mm <= limit at every sweep
             # sample (the audit's measure, there by central differences), normalised to <= 1
             tr, _, peak = self.torque[f"1-D {data.primary_coordinate}"]
-            limit = 1e-2 * cfg.sensitivity_pct * peak / 1e-3          # [N·m per m]
+            limit = 1e-2 * cfg.limits.sensitivity_pct * peak / 1e-3          # [N·m per m]
             if peak > 1e-9:
                 G = ca.jacobian(ca.vec(tr), self.z)                      # (S1, nz)
                 for k, i in enumerate(self.free):
@@ -209,14 +209,14 @@ class ActuatorProblem:
             fam += [f"PAM fits on segment {self.mount + 1}-{self.mount + 2} (resting)"] * len(ci)
             g.append(actual_row); lbg += [0.0] * len(ci); ubg += [np.inf] * len(ci)
             fam += [f"PAM fits on segment {self.mount + 1}-{self.mount + 2} (actual)"] * len(ci)
-        if cfg.min_point_distance_m > 0:
+        if cfg.limits.min_point_distance_m > 0:
             for a, b in zip(range(len(X) - 1), range(1, len(X))):
                 same = (a not in self.moving and b not in self.moving
                         and data.body_of_point[a] == data.body_of_point[b])
                 cols = ci[:1] if same else ci        # within one body the distance is constant
                 dv = X[b][:, cols] - X[a][:, cols]
                 g.append(ca.sum1(dv * dv).T)
-                lbg += [cfg.min_point_distance_m ** 2] * len(cols)
+                lbg += [cfg.limits.min_point_distance_m ** 2] * len(cols)
                 ubg += [np.inf] * len(cols)
                 fam += [f"distance point {a + 1}-{b + 1} >= min_point_distance"] * len(cols)
         radius = diameter / 2000.0
@@ -288,7 +288,7 @@ class ActuatorProblem:
             lbx += list(lo)
             ubx += list(hi)
         lmin, lmax = festo.nominal_length_range(diameter)
-        if cfg.fix_lengths:
+        if cfg.limits.fix_lengths:
             rest, tendon = data.pam.resting_length_m, max(data.pam.tendon_length_m, 0.0)
             lbx += [rest, tendon]
             ubx += [rest, tendon]
@@ -334,7 +334,7 @@ class ActuatorProblem:
             z += list(np.clip(points[i], self.lbx[3 * k:3 * k + 3], self.ubx[3 * k:3 * k + 3]))
         f = ca.Function("L", [self.z], [self.L])  # lengths do not depend on n_parallel
         L = np.array(f(np.array(z + [1.0, 0.0]))).ravel()
-        if self.cfg.fix_lengths:
+        if self.cfg.limits.fix_lengths:
             rest, tendon = self.data.pam.resting_length_m, max(self.data.pam.tendon_length_m, 0.0)
         elif rest is None or tendon is None or tendon < 0:
             km = float(festo.kmax(0.5, self.d, model=self.data.force_model))
@@ -386,8 +386,8 @@ class ActuatorProblem:
         """IPOPT options of every solve. IPOPT's own feasibility tolerances (``constr_viol_tol`` 1e-4,
         ``acceptable_constr_viol_tol`` 1e-2 by default) are set below the run's feasibility check
         (:data:`FEASIBILITY_TOL`), so "solved" and "solved to an acceptable level" mean feasible for it."""
-        t = float(self.cfg.max_solve_seconds)
-        return {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": self.cfg.max_iter,
+        t = float(self.cfg.first_fit.max_solve_seconds)
+        return {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": self.cfg.first_fit.max_iter,
                 "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.acceptable_iter": 5,
                 "ipopt.constr_viol_tol": 0.1 * FEASIBILITY_TOL,
                 "ipopt.acceptable_constr_viol_tol": 0.1 * FEASIBILITY_TOL,

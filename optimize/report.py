@@ -19,7 +19,7 @@ def mount_lines(results: list[ActuatorResult], cfg: RunConfig) -> list[str]:
         return []
     on = [r for r in done if r.mount["mounted"]]
     out = [f"one straight segment: {len(on)} of {len(done)} PAMs (resting and tendon length re-solved on the "
-           f"fixed route; mount_cost {cfg.mount_cost:g})"]
+           f"fixed route; mount_cost {cfg.mount.cost:g})"]
     out += [f"one straight segment: actuator {r.id} {r.name} ({r.mount['reason']}): {r.mount['line']}"
             for r in done if not r.mount["mounted"]]
     return out

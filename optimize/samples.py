@@ -126,19 +126,19 @@ def actuator_data(pam: Pam, human: Model, rom: RangeOfMotion, cfg: RunConfig, fi
     secs = [c for c in pam.secondary_coordinates]
     blocks, objective = [], []
     start = 0
-    q1 = _grid(human, rom, [prim], cfg.n_primary)
+    q1 = _grid(human, rom, [prim], cfg.samples.primary)
     blocks.append(q1)
-    objective.append((prim, np.arange(start, start + len(q1)), cfg.weight_primary, f"1-D {prim}"))
+    objective.append((prim, np.arange(start, start + len(q1)), cfg.weights.primary, f"1-D {prim}"))
     start += len(q1)
     for c in secs:
-        q2 = _grid(human, rom, [prim, c], cfg.n_secondary)
+        q2 = _grid(human, rom, [prim, c], cfg.samples.secondary)
         blocks.append(q2)
-        objective.append((c, np.arange(start, start + len(q2)), cfg.weight_secondary, f"2-D {prim} x {c}"))
+        objective.append((c, np.arange(start, start + len(q2)), cfg.weights.secondary, f"2-D {prim} x {c}"))
         start += len(q2)
     coords = [prim, *secs]
     if any(c.startswith("hip_adduction") for c in coords) and not any(c.startswith("hip_flexion") for c in coords):
         coords.append(prim[:0] + "hip_flexion_" + prim[-1])
-    qc = _grid(human, rom, coords, cfg.n_constraint)
+    qc = _grid(human, rom, coords, cfg.samples.constraint)
     blocks.append(qc)
     # strain limits: the 1-D sweep of the primary coordinate and the full grid over the PAM's coordinates
     constraint_idx = np.concatenate([np.arange(0, len(q1)), np.arange(start, start + len(qc))])
@@ -161,14 +161,14 @@ def actuator_data(pam: Pam, human: Model, rom: RangeOfMotion, cfg: RunConfig, fi
     crossed: list[str] = []
     norm: dict[str, float] = {}
     train_rows = np.zeros(0, dtype=int)
-    if cfg.weight_whole_vector > 0 and (cfg.n_random > 0 or cfg.gait_samples):
+    if cfg.weights.whole_vector > 0 and (cfg.samples.random > 0 or cfg.samples.gait):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RangeWarning)
             crossed = crossed_coordinates(human, rom, pam.points, target, seed=cfg.seed)
         if prim not in crossed:
             crossed.append(prim)
-        qt = [training_poses(human, rom, crossed, cfg.n_random, cfg.seed, pam.id)] if cfg.n_random > 0 else []
-        if cfg.gait_samples:
+        qt = [training_poses(human, rom, crossed, cfg.samples.random, cfg.seed, pam.id)] if cfg.samples.random > 0 else []
+        if cfg.samples.gait:
             qt.append(gait_training_poses(human))
         qt = np.vstack(qt)
         if len(qt):
@@ -186,7 +186,7 @@ def actuator_data(pam: Pam, human: Model, rom: RangeOfMotion, cfg: RunConfig, fi
         warnings.simplefilter("ignore", RangeWarning)    # training poses may leave the human model's ranges
         T = np.asarray(target(q), float)
     for c in crossed:
-        objective.append((c, train_rows, cfg.weight_whole_vector, f"train {c}"))
+        objective.append((c, train_rows, cfg.weights.whole_vector, f"train {c}"))
     if len(train_rows):
         peak = float(np.max(np.abs(T[train_rows, human.coordinates.index(prim)])))
         if peak <= 1e-9:
@@ -227,7 +227,7 @@ def actuator_data(pam: Pam, human: Model, rom: RangeOfMotion, cfg: RunConfig, fi
             vel[c] = v
         moving_v[pid] = vel
     capsules = []
-    if cfg.bone_clearance:
+    if cfg.limits.bone_clearance:
         for cap in load_capsules("r"):
             if cap.body not in human.bodies:
                 continue

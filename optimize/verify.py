@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 from pamkin.optimize.samples import load_capsules
 
-import pamkin
 from pamkin.audit.compare import compare_pam, failing_as_worst
+from pamkin.human.model import gait2392
 from pamkin.human.rom import load_rom
 from pamkin.robot import festo
 from pamkin.robot.biped import PamRobot, robot_skeleton
@@ -62,7 +62,7 @@ def summarize(seed: Design, new: Design, results, cfg, progress=None) -> dict:
         progress: Called as ``progress(done, total, actuator_id, name)`` after each actuator.
     """
 
-    human = pamkin.gait2392()
+    human = gait2392()
     skel = robot_skeleton()
     before = PamRobot(seed, skel, sides=("r",))
     after = PamRobot(new, skel, sides=("r",))
@@ -77,8 +77,8 @@ def summarize(seed: Design, new: Design, results, cfg, progress=None) -> dict:
         st = after.evaluate(qc)
         km = float(festo.kmax(pam.resting_length_m, pam.diameter_mm, model=new.force_model))
         eps = st.strain[:, k]
-        pre = cfg.pretension_scale * festo.max_pretension(pam.diameter_mm)
-        dead = float(np.mean((eps > cfg.kmax_scale * km + 1e-9) | (eps < -pre - 1e-9)))
+        pre = cfg.limits.pretension_scale * festo.max_pretension(pam.diameter_mm)
+        dead = float(np.mean((eps > cfg.limits.kmax_scale * km + 1e-9) | (eps < -pre - 1e-9)))
         # agreement of the CasADi torques with the numpy pipeline at the optimisation samples
         diff = 0.0
         for label, q in r.sample_q.items():

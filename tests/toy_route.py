@@ -42,8 +42,7 @@ def toy_problem(region: float):
     def target(q):
         return seed_robot.evaluate(q).torques[:, 0, :]
 
-    cfg = RunConfig(**{**FAST_FIT, "bone_mesh": True}, regularization=0.0, bone_clearance=False, n_primary=21,
-                    regions={"1": [region, region, 0.0]})
+    cfg = RunConfig().replace({**FAST_FIT, "bone_rounds.enabled": True, "weights.regularization": 0.0, "limits.bone_clearance": False, "samples.primary": 21, "regions": {"1": [region, region, 0.0]}})
     data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
     seed_points = [np.array(p.location) for p in seed.points]
     regions = [np.array(cfg.region(1, p.name)) for p in seed.points]

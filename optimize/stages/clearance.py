@@ -1,4 +1,4 @@
-"""PAM-PAM clearance stage (``limits.pam_clearance``, off by default): every actuator whose route comes nearer
+"""PAM-PAM clearance stage (``clearance.enabled``, off by default): every actuator whose route comes nearer
 another PAM's body than their radii is solved again with the other bodies as obstacles."""
 
 from __future__ import annotations

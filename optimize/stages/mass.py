@@ -1,5 +1,5 @@
 """Mass stage: pulley blocks taken off again, the least score lost per kilogram first, while the robot's
-estimated mass (both sides, the audit's) is above ``limits.max_mass_kg``."""
+estimated mass (both sides, the audit's) is above ``mass.max_kg``."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ def is_block_try(r: ActuatorResult) -> bool:
 
 
 def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
-    """Keep the robot's estimated mass within ``cfg.max_mass_kg`` where the one-segment stage's pulley blocks
+    """Keep the robot's estimated mass within ``cfg.mass.max_kg`` where the one-segment stage's pulley blocks
     took it above: while it is over, the block whose removal loses the least score (objective + mass penalty)
     per kilogram saved comes off again — the actuator goes back to its result before the block
     (``ActuatorResult.direct``). The mass is the audit's (:func:`pamkin.robot.design.pam_unit_mass`, both sides,
@@ -39,8 +39,8 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
     mass = unit_mass
     total = design_mass(seed, results)
     out = list(results)
-    for budget, only in ((cfg.max_mass_kg - BLOCK_TRY_HEADROOM_KG, is_block_try), (cfg.max_mass_kg, None)):
-        what = f"mass budget {cfg.max_mass_kg:g} kg" + \
+    for budget, only in ((cfg.mass.max_kg - BLOCK_TRY_HEADROOM_KG, is_block_try), (cfg.mass.max_kg, None)):
+        what = f"mass budget {cfg.mass.max_kg:g} kg" + \
             (f" less {BLOCK_TRY_HEADROOM_KG:g} kg for a warm re-run (blocks throughout)" if only else "")
         while total > budget:
             options = [((result_score(r.direct, cfg) - result_score(r, cfg)) / (mass(r.pam) - mass(r.direct.pam)), k)

@@ -36,7 +36,7 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
     the donor with one fewer; the receivers that pass take the units, the most audit limits newly passed
     first, then the smallest error. A move is kept where the receiver then passes both limits within
     :data:`PASS_MARGIN`, the donor's re-solve succeeds, both are clear of bone and on one straight segment
-    where they were, and the robot's estimated mass stays within ``cfg.max_mass_kg``: the unit count does
+    where they were, and the robot's estimated mass stays within ``cfg.mass.max_kg``: the unit count does
     not change. Only direct (1:1) results take part. Each moved actuator's bone log says so."""
     cfg, stream = ctx.cfg, ctx.stream
     lim_n, lim_w = fit_limits()
@@ -54,7 +54,7 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
               and not ctx.first[k].warm]
     near = sorted((max(nr / lim_n, w / lim_w), k) for k, (nr, w) in err.items()
                   if (nr > lim_n or w > lim_w) and k not in donors
-                  and results[k].n_parallel < min(cfg.max_parallel, ctx.n_cap))
+                  and results[k].n_parallel < min(cfg.first_fit.max_parallel, ctx.n_cap))
     receivers = [k for ratio, k in near if ratio <= REALLOCATE_NEAR][:REALLOCATE_TRIES * len(donors)]
     if not donors or not receivers:
         return results
@@ -116,8 +116,8 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
         trial = list(out)
         trial[k], trial[j] = a, done[(results[j].id, results[j].n_parallel - 1)]
         mass = design_mass(seed, trial)
-        if cfg.max_mass_kg > 0 and mass > cfg.max_mass_kg:
-            lines.setdefault(k, []).append(f"{said}: not kept (mass {mass:.2f} kg > {cfg.max_mass_kg:g})")
+        if cfg.mass.max_kg > 0 and mass > cfg.mass.max_kg:
+            lines.setdefault(k, []).append(f"{said}: not kept (mass {mass:.2f} kg > {cfg.mass.max_kg:g})")
             continue
         free.pop(0)
         out = trial

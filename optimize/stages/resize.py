@@ -1,7 +1,7 @@
-"""Re-sizing stage: an actuator whose fit the bone rounds left poor (objective above ``limits.resize_above``)
+"""Re-sizing stage: an actuator whose fit the bone rounds left poor (objective above ``resize.above``)
 gets its other first-phase diameters (same parallel count: the unit budget holds) through the bone rounds and the
 one-segment stage too, and one the one-segment stage put on a pulley block whose fit is poor a block throughout
-(``limits.block_refit_above``); the better result kept."""
+(``resize.block_refit_above``); the better result kept."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
 
     The unit budget chooses every diameter on the first phase's fits, made without the bone meshes; the bone
     rounds then raise some fits many times, and not alike for every diameter (sartorius: 20 mm fitted best
-    before them, 10 mm after). An actuator whose saved objective is above ``cfg.resize_above`` gets its other
+    before them, 10 mm after). An actuator whose saved objective is above ``cfg.resize.above`` gets its other
     first-phase candidates with the same parallel count (so the unit budget still holds) through the bone
     rounds and the one-segment stage (:func:`actuator.finish_choice`, in the workers), where the candidate's score
     before the rounds (objective + mass penalty) was below the actuator's score after them; an actuator the
@@ -38,7 +38,7 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
 
     tasks = []
     for k, r in enumerate(results):
-        if not (r.success and r.objective is not None and r.objective > cfg.resize_above):
+        if not (r.success and r.objective is not None and r.objective > cfg.resize.above):
             continue
         now = result_score(r, cfg)
         for key, (pre, _, _) in sorted(first[k].candidates.items()):
@@ -49,15 +49,15 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
     if not tasks and not blocks:
         return results
     print(f"resize after the bone rounds: {len(tasks)} other diameter(s) of "
-          f"{len({t[0] for t in tasks})} actuator(s) with fit objective > {cfg.resize_above:g}"
+          f"{len({t[0] for t in tasks})} actuator(s) with fit objective > {cfg.resize.above:g}"
           + (f"; {len(blocks)} pulley block(s) throughout for {len({t[0] for t in blocks})} actuator(s) the "
-             f"one-segment stage put on one, fit objective > {cfg.block_refit_above:g}" if blocks else ""),
+             f"one-segment stage put on one, fit objective > {cfg.resize.block_refit_above:g}" if blocks else ""),
           file=stream, flush=True)
     tasks += blocks
     tried = sorted(ctx.map(actuator.finish_choice, tasks, "resize"),
                    key=lambda a: (a.id, a.attempts[-1]["diameter_mm"], a.attempts[-1].get("transmission", 1)))
     out = list(results)
-    held_out = ctx.validation_error_of() if cfg.resize_on == "validation" else None
+    held_out = ctx.validation_error_of() if cfg.resize.on == "validation" else None
     for k in sorted({t[0] for t in tasks}):
         r = results[k]
         lines = []
@@ -108,29 +108,29 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
 def block_tasks(ctx: RunContext, results: list[ActuatorResult], cfg: RunConfig, total_mass: float | None = None) -> list[tuple]:
     """:func:`resize_pass`'s tries of pulley blocks throughout: an actuator the one-segment stage put on a
     k:1 block (on the route fitted without it: out of reach or infeasible at 1:1) whose fit objective is
-    above ``cfg.block_refit_above`` (and not above ``cfg.resize_above``: those get their other diameters) is
+    above ``cfg.resize.block_refit_above`` (and not above ``cfg.resize.above``: those get their other diameters) is
     solved again with its PAM on a block from the first phase on, at the largest ratio of
     :data:`optimize.mount.BLOCKS` (3:1: the most stroke, the least force; same diameter and parallel count),
     so the route's fit and bone rounds see the block's stroke and force. (Both ratios, measured: twice the
     tries, one more kept — gluteus maximus at 2:1, objective 0.864 -> 0.862 — and over the 10-minute run.)
     Not tried where, with the design's mass ``total_mass`` [kg] given, the pulleys it adds would leave less
-    than :data:`BLOCK_TRY_HEADROOM_KG` below ``cfg.max_mass_kg`` (:func:`mass_pass` would take it off again).
+    than :data:`BLOCK_TRY_HEADROOM_KG` below ``cfg.mass.max_kg`` (:func:`mass_pass` would take it off again).
     Tasks ``(k, (diameter, n), z, ratio)``, ``z`` the
     result's decision vector before the block (the start where the first phase has no fit of that size)."""
     from pamkin.optimize.mount import BLOCKS  # noqa: PLC0415
 
-    if not (cfg.mount and cfg.mount_blocks and cfg.block_refit_above > 0):
+    if not (cfg.mount.enabled and cfg.mount.blocks and cfg.resize.block_refit_above > 0):
         return []
     tasks = []
     for k, r in enumerate(results):
-        if (r.success and r.objective is not None and cfg.block_refit_above < r.objective
-                and not (cfg.resize_above > 0 and r.objective > cfg.resize_above)
+        if (r.success and r.objective is not None and cfg.resize.block_refit_above < r.objective
+                and not (cfg.resize.above > 0 and r.objective > cfg.resize.above)
                 and r.direct is not None and r.pam.transmission > 1):
             t = BLOCKS[-1]
-            if total_mass is not None and cfg.max_mass_kg > 0 and t > r.pam.transmission:
+            if total_mass is not None and cfg.mass.max_kg > 0 and t > r.pam.transmission:
                 # the pulleys it adds (at the present resting length) would leave no headroom
                 heavier = unit_mass(dataclasses.replace(r.pam, transmission=t))
-                if total_mass + heavier - unit_mass(r.pam) > cfg.max_mass_kg - BLOCK_TRY_HEADROOM_KG:
+                if total_mass + heavier - unit_mass(r.pam) > cfg.mass.max_kg - BLOCK_TRY_HEADROOM_KG:
                     continue
             tasks.append((k, (r.pam.diameter_mm, r.n_parallel), r.direct.z, t))
     return tasks

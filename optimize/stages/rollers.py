@@ -1,4 +1,4 @@
-"""Roller stage (``limits.rollers``, off by default): actuators failing an audit fit limit on the validation
+"""Roller stage (``rollers.enabled``, off by default): actuators failing an audit fit limit on the validation
 poses get rollers (cable guides on bone) where their fit without the bone rows goes into bone, kept where they
 lower the validation error and the route is clear (:func:`optimize.actuator.roller_actuator`)."""
 

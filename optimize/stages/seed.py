@@ -8,9 +8,9 @@ from pathlib import Path
 
 from pamkin.optimize.config import RunConfig
 
-import pamkin
 from pamkin.errors import DataFileError
 from pamkin.human.bones import BoneSet
+from pamkin.human.model import gait2392
 from pamkin.robot.biped import robot_skeleton
 from pamkin.robot.design import Design, load_design
 from pamkin.robot.detour import remove_via
@@ -29,7 +29,7 @@ def prepare(cfg: RunConfig) -> tuple[Design, set[int], list[str]]:
     eyelets: list[str] = []
     names = None
     if cfg.eyelets:         # the optimised actuators' eyelets (pamkin.robot.eyelets), before the warm start
-        human = pamkin.gait2392()
+        human = gait2392()
         bones = BoneSet(human)
         # every eyelet of the table names the route points a warm start's routes may hold (a warm run's
         # actuators not optimised here keep theirs, lengths and all)
@@ -56,7 +56,7 @@ def warm_seed(seed: Design, warm: Design, names: Design | None = None) -> tuple[
     """``seed`` with every PAM it shares with ``warm`` (a finished run's design) replaced by the warm one, and
     their ids. A warm route's rollers and detour via points are not kept (:func:`pamkin.robot.detour.remove_via`:
     the points the seed route does not have, their length off the tendon again): the roller stage
-    (``limits.rollers``) and the detours (``limits.detours``) place them again. ``names`` (default ``seed``):
+    (``rollers.enabled``) and the detours (``detours.enabled``) place them again. ``names`` (default ``seed``):
     the design whose route points a warm route may keep (the seed with every eyelet of the run's table)."""
     names = names or seed
     ids = set()

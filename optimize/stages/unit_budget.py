@@ -1,5 +1,5 @@
 """Unit-budget stage: every actuator's Festo diameter and parallel count chosen together, for the least summed
-score (fit objective + mass penalty) within ``limits.max_units`` PAM units (both sides), by dynamic programming
+score (fit objective + mass penalty) within ``unit_budget.max_units`` PAM units (both sides), by dynamic programming
 over the first phase's feasible candidates."""
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ def choose_units(results: list[ActuatorResult], budget: int) -> tuple[list, floa
     cap = budget - fixed
     need = sum(min(key[1] for _, key in opts) for opts in options)
     if need > cap:
-        raise InfeasibleError(f"limits.max_units: the actuators' feasible diameter / parallel-count choices need "
+        raise InfeasibleError(f"unit_budget.max_units: the actuators' feasible diameter / parallel-count choices need "
                               f"at least {need + fixed} PAM units per side, the budget allows {budget}")
     INF = float("inf")
     table = [0.0] * (cap + 1)           # table[u]: least score of the actuators so far using <= u units
@@ -55,11 +55,11 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
     ids = {r.id for r in results}
     others = sum(p.n_parallel for p in seed.pams if p.id not in ids)
     free = sum(r.n_parallel for r in results)
-    choice, total = choose_units(results, cfg.max_units // 2 - others)
+    choice, total = choose_units(results, cfg.unit_budget.max_units // 2 - others)
     units = sum(key[1] if key else r.n_parallel for key, r in zip(choice, results))
     changed = [f"{r.id} {r.name} {r.pam.diameter_mm}x{r.n_parallel} -> {key[0]}x{key[1]}"
                for r, key in zip(results, choice) if key and key != (r.pam.diameter_mm, r.n_parallel)]
-    print(f"unit budget {cfg.max_units} (both sides): each actuator's own best needs {2 * (free + others)}; "
+    print(f"unit budget {cfg.unit_budget.max_units} (both sides): each actuator's own best needs {2 * (free + others)}; "
           f"chosen {2 * (units + others)} (summed score {total:.4g})" + (": " + "; ".join(changed) if changed else ""),
           file=ctx.stream, flush=True)
     ctx.fit_only, ctx.first, ctx.choice = False, dict(enumerate(results)), dict(enumerate(choice))

@@ -115,8 +115,8 @@ def _proxies(design: Design, p, ids: list[int], cfg, units: int, budget: int, sk
     out = []
     for pid in ids:
         cur = design.pam(pid)
-        for d in cfg.diameters_mm:
-            for n in range(1, cfg.max_parallel + 1):
+        for d in cfg.first_fit.diameters_mm:
+            for n in range(1, cfg.first_fit.max_parallel + 1):
                 if (d, n) == (cur.diameter_mm, cur.n_parallel) or units - cur.n_parallel + n > budget:
                     continue
                 trial_design = design.replace_pam(dataclasses.replace(cur, diameter_mm=d, n_parallel=n))
@@ -130,7 +130,7 @@ def _proxies(design: Design, p, ids: list[int], cfg, units: int, budget: int, sk
 def walking_pass(design: Design, results: list, data: list, cfg, budget: int, skeleton, trial,
                  model, rom, resolve=None) -> tuple[Design, list, list[str]]:
     """Swap diameters / parallel counts of the optimised ``design`` until the walking fraction between
-    the trial's frames reaches ``cfg.walking_min`` (or no swap raises it), within ``budget`` PAM units
+    the trial's frames reaches ``cfg.walking.min_fraction`` (or no swap raises it), within ``budget`` PAM units
     on one side of the whole design (every actuator of ``design`` counts, optimised or not).
 
     Each step ranks the swaps of the actuators at the pressure limit by the plan with the new size on
@@ -150,7 +150,7 @@ def walking_pass(design: Design, results: list, data: list, cfg, budget: int, sk
     results = list(results)
     p = plan(design, skeleton, trial)
     frac = p.feasible_frame_fraction
-    target = cfg.walking_min
+    target = cfg.walking.min_fraction
     lines = [f"walking check ({len(trial.times)} samples between the trial's frames): {100 * frac:.1f} % "
              f"feasible, target {100 * target:.0f} %"]
     units = sum(q.n_parallel for q in design.pams)
@@ -241,12 +241,12 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
     """The optimised design checked on the walking trial, diameters / counts swapped where it falls short
     (:mod:`optimize.stages.walking`)."""
     seed_design, cfg, stream = ctx.seed_design, ctx.cfg, ctx.stream
-    budget = cfg.max_units // 2      # units of a whole side
+    budget = cfg.unit_budget.max_units // 2      # units of a whole side
 
 
     skeleton = robot_skeleton()
     trial = midpoint_trial(skeleton)
-    report: dict = {"target": cfg.walking_min}
+    report: dict = {"target": cfg.walking.min_fraction}
     if trial is None:
         lines = ["walking check skipped: the walking trial (pamkin.gait.plan.DEFAULT_IK / DEFAULT_ID) is not there"]
     else:

@@ -46,13 +46,12 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-import pamkin
 from pamkin._resources import SHARED_DIR, data_file
 from pamkin.audit.compare import compare_pam, failing_as_worst, finite_or_none
 from pamkin.errors import ConfigurationError, DataFileError, RangeWarning
 from pamkin.gait.plan import gait_plan
 from pamkin.human.bones import BoneSet, body_pair_distance
-from pamkin.human.model import Model
+from pamkin.human.model import Model, gait2392
 from pamkin.human.paths import PathSet
 from pamkin.human.rom import RangeOfMotion, load_rom
 from pamkin.opensim.model_file import ConditionalPathPoint, MovingPathPoint, PathPoint
@@ -336,7 +335,7 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
         des = load_design(design, bodies=skel.bodies, coordinates=skel.coordinates)
     if human is None:
 
-        human = pamkin.gait2392()
+        human = gait2392()
     robot = PamRobot(des, skel)
     n = len(des.pams)
     names = skel.coordinates

@@ -325,8 +325,8 @@ def test_random_poses_reproducible_within_rom_and_disjoint(skel):
     opt = []
     for pam in design.pams[:27]:
         coords = [pam.primary_coordinate, *pam.secondary_coordinates]
-        opt.append(_grid(skel, rom, [pam.primary_coordinate], cfg.n_primary))
-        opt.append(_grid(skel, rom, coords[:2], cfg.n_secondary))
+        opt.append(_grid(skel, rom, [pam.primary_coordinate], cfg.samples.primary))
+        opt.append(_grid(skel, rom, coords[:2], cfg.samples.secondary))
     opt = np.unique(np.vstack(opt), axis=0)
     d = np.min(np.linalg.norm(q1[:, None, :] - opt[None, :, :], axis=2))
     assert d > 1e-3

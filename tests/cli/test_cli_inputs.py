@@ -64,17 +64,17 @@ def test_config_region_key_malformed(tmp_path, capsys):
 
 
 def test_config_multistart_not_integer(tmp_path, capsys):
-    err = _optimize_config_error(tmp_path, capsys, 'multistart = "three"\n')
+    err = _optimize_config_error(tmp_path, capsys, '[first_fit]\nmultistart = "three"\n')
     assert "multistart: must be an integer, got 'three'" in err
 
 
 def test_config_diameters_not_a_list(tmp_path, capsys):
-    err = _optimize_config_error(tmp_path, capsys, "diameters_mm = 20\n")
+    err = _optimize_config_error(tmp_path, capsys, "[first_fit]\ndiameters_mm = 20\n")
     assert "diameters_mm: must be a list of integers" in err
 
 
 def test_config_max_iter_not_integer(tmp_path, capsys):
-    err = _optimize_config_error(tmp_path, capsys, "max_iter = 2.5\n")
+    err = _optimize_config_error(tmp_path, capsys, "[first_fit]\nmax_iter = 2.5\n")
     assert "max_iter: must be an integer, got 2.5" in err
 
 
@@ -82,9 +82,9 @@ def test_config_type_checks_also_apply_to_programmatic_configs():
     from pamkin.optimize.config import RunConfig
 
     with pytest.raises(DataFileError, match="workers: must be an integer"):
-        RunConfig(workers=True).validate()
+        RunConfig().replace({"workers": True}).validate()
     with pytest.raises(DataFileError, match="limits.kmax_scale"):
-        RunConfig(kmax_scale=1.5).validate()
+        RunConfig().replace({"limits.kmax_scale": 1.5}).validate()
 
 
 def test_workers_zero_is_an_error(capsys):

@@ -223,10 +223,10 @@ def test_bone_mesh_config_keys(tmp_path):
     from pamkin.optimize.config import load_config
 
     f = tmp_path / "c.toml"
-    f.write_text("[limits]\nbone_mesh = true\nbone_rounds = 4\n")
+    f.write_text("[bone_rounds]\nenabled = true\nrounds = 4\n")
     cfg = load_config(f)
-    assert cfg.bone_mesh and cfg.bone_rounds == 4
-    f.write_text("[limits]\nbone_rounds = 0\n")
+    assert cfg.bone_rounds.enabled and cfg.bone_rounds.rounds == 4
+    f.write_text("[bone_rounds]\nrounds = 0\n")
     with pytest.raises(DataFileError, match="bone_rounds"):
         load_config(f)
 
@@ -248,8 +248,7 @@ def test_pam_rows_move_a_toy_route_off_another_pam_body():
     def target(q):
         return seed_robot.evaluate(q).torques[:, 0, :]
 
-    cfg = RunConfig(**{**FAST_FIT, "bone_mesh": True}, regularization=0.0, bone_clearance=False, n_primary=21,
-                    regions={"1": [0.05, 0.05, 0.05]})
+    cfg = RunConfig().replace({**FAST_FIT, "bone_rounds.enabled": True, "weights.regularization": 0.0, "limits.bone_clearance": False, "samples.primary": 21, "regions": {"1": [0.05, 0.05, 0.05]}})
     prob, sol, cuts, first, m1 = _fit_and_clear(model, bones, seed, rom, cfg, target, rounds=8)
     assert m1.violation() == 0.0
     X = cuts.world(np.array(first.points))                 # (S, 2, 3): the other body runs 12 mm beside
@@ -279,7 +278,7 @@ def test_bone_mesh_run_is_clear_on_held_out_poses(tmp_path, capsys):
     from pamkin.human.rom import load_rom
 
     cfg = tmp_path / "bone.toml"
-    cfg.write_text("multistart = 0\ndiameters_mm = [20]\nmax_parallel = 1\n[limits]\nbone_mesh = true\n")
+    cfg.write_text("[first_fit]\nmultistart = 0\ndiameters_mm = [20]\nmax_parallel = 1\n[bone_rounds]\nenabled = true\n")
     out = tmp_path / "run"
     assert main(["optimize", str(cfg), "--actuators", "10", "--workers", "1", "--no-audit", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
@@ -349,9 +348,7 @@ def _mount_toy(mount_cost: float):
     def target(q):
         return 0.6 * seed_robot.evaluate(q).torques[:, 0, :]
 
-    cfg = RunConfig(**{**FAST_FIT, "rated_force": True, "bone_mesh": True, "mount_cost": mount_cost},
-                    regularization=0.0, bone_clearance=False, n_primary=21, min_point_distance_m=0.0,
-                    regions={"1": [0.02, 0.02, 0.0]})
+    cfg = RunConfig().replace({**FAST_FIT, "limits.rated_force": True, "bone_rounds.enabled": True, "mount.cost": mount_cost, "weights.regularization": 0.0, "limits.bone_clearance": False, "samples.primary": 21, "limits.min_point_distance_m": 0.0, "regions": {"1": [0.02, 0.02, 0.0]}})
     prob, _, cuts, best, measure = _fit_and_clear(model, bones, seed, rom, cfg, target, rounds=12)
     assert best.success and measure.violation() == 0.0
     return model, rom, seed, cfg, prob, best, cuts, bones
@@ -363,7 +360,6 @@ def test_mount_rounds_put_a_pam_on_its_segment_with_the_points_free():
     smaller cost, and measured independently (pamkin.robot.biped on 201 poses, the blocks on a dense grid) it
     fits on the segment, keeps its strain limits and clears the blocks within its brackets. A mount cost
     the rounds cannot meet is refused and named; one far below the fixed route's cost is not tried."""
-    import dataclasses
 
     from pamkin.robot import festo
     from pamkin.optimize.mount import mount_rounds, mount_stage, mounted_segment
@@ -374,14 +370,14 @@ def test_mount_rounds_put_a_pam_on_its_segment_with_the_points_free():
     _, free = mount_stage(prob, best, seed, cfg, model, rom, solution_pam)
     c1 = free["cost"]                                      # the fixed route's cost of mounting
     assert free["mounted"] and c1 > 0.005, free
-    cfg_m = dataclasses.replace(cfg, mount_cost=0.999 * c1)
+    cfg_m = cfg.replace({"mount.cost": 0.999 * c1})
     kept, info = mount_stage(prob, best, seed, cfg_m, model, rom, solution_pam)
     assert kept is best and info["reason"] == "fit cost"
     mounted, p1, out = mount_rounds(prob, best, info, seed, cfg_m, cuts, model, rom, solution_pam)
     assert out["mounted"] and out["rounds"]["kept"], out
     j = p1.mount
     assert p1 is not prob and mounted_segment(p1, mounted.z) == j and out["segment"] == ["o->v", "v->i"][j]
-    assert out["cost"] <= cfg_m.mount_cost and out["cost"] < c1
+    assert out["cost"] <= cfg_m.mount.cost and out["cost"] < c1
     assert np.abs(np.array(mounted.points) - np.array(best.points)).max() > 1e-4      # the points moved
     assert out["line"].startswith(f"on one straight segment {out['segment']} with its points moved")
 
@@ -406,8 +402,8 @@ def test_mount_rounds_put_a_pam_on_its_segment_with_the_points_free():
     assert all(0.0 <= x <= POINT_MAX + 1e-4 for x in own), own
 
     # a mount cost the rounds cannot meet, within the rule's reach: tried, refused and named
-    cfg_x = dataclasses.replace(cfg, mount_cost=0.9 * out["cost"])
-    assert c1 <= 2 * cfg_x.mount_cost
+    cfg_x = cfg.replace({"mount.cost": 0.9 * out["cost"]})
+    assert c1 <= 2 * cfg_x.mount.cost
     _, info_x = mount_stage(prob, best, seed, cfg_x, model, rom, solution_pam)
     same, p_x, out_x = mount_rounds(prob, best, info_x, seed, cfg_x, cuts, model, rom, solution_pam)
     assert same is best and p_x is prob and not out_x["mounted"] and not out_x["rounds"]["kept"]
@@ -422,7 +418,7 @@ def test_mount_rounds_put_a_pam_on_its_segment_with_the_points_free():
 
     got, p_f, out_f = mount_rounds(prob, best, info_x, seed, cfg_x, cuts, model, rom, solution_pam, failing)
     assert out_f["mounted"] and out_f["rounds"]["kept"] and out_f["failing_fit"].endswith("(test)")
-    assert f"> mount_cost {cfg_x.mount_cost:g}, accepted: its fit fails both" in out_f["line"]
+    assert f"> mount_cost {cfg_x.mount.cost:g}, accepted: its fit fails both" in out_f["line"]
     assert asked and asked[0][0] == solution_pam(seed, prob.finalize(best))
     assert mounted_segment(p_f, got.z) == p_f.mount
     # infeasible on the fixed route: tried only where the PAM overran the segment alone, by <= 10 mm
@@ -432,7 +428,7 @@ def test_mount_rounds_put_a_pam_on_its_segment_with_the_points_free():
         _, _, out_i = mount_rounds(prob, best, inf, seed, cfg_x, cuts, model, rom, solution_pam)
         assert ("rounds" in out_i) == tried, missed
     # far below the fixed route's cost: not tried
-    cfg_y = dataclasses.replace(cfg, mount_cost=0.4 * c1)
+    cfg_y = cfg.replace({"mount.cost": 0.4 * c1})
     _, info_y = mount_stage(prob, best, seed, cfg_y, model, rom, solution_pam)
     same, p_y, out_y = mount_rounds(prob, best, info_y, seed, cfg_y, cuts, model, rom, solution_pam)
     assert same is best and p_y is prob and "rounds" not in out_y
@@ -470,7 +466,7 @@ def test_a_warm_start_is_not_traded_for_a_route_over_a_limit(case, monkeypatch):
     monkeypatch.setattr(actuator, "bone_stage", lambda p, s, c, *a, **k: (bad, c.measure(np.array(bad.points)), []))
     monkeypatch.setattr(actuator, "check_poses", lambda *a, **k: q)
     ctx = RunContext(cfg, None, model, rom, bones=bones)
-    out, bone, _ = actuator.bone_rounds(ctx, prob, start, seed, dataclasses.replace(cfg, bone_seed_start=False))
+    out, bone, _ = actuator.bone_rounds(ctx, prob, start, seed, cfg.replace({"bone_rounds.seed_start": False}))
     log = "\n".join(bone["log"])
     assert "still exceeded" in log
     if case == "warm":

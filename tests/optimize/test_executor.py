@@ -51,11 +51,11 @@ def local_run(tmp_path_factory) -> Path:
 
 def test_map_tasks_stores_each_result_and_a_resumed_map_solves_only_the_rest(tmp_path):
     store = RunStore(tmp_path)
-    ctx = RunContext(RunConfig(workers=2, seed=1), None, None, None, store=store)
+    ctx = RunContext(RunConfig().replace({"workers": 2, "seed": 1}), None, None, None, store=store)
     assert sorted(map_tasks(ctx, _square, [1, 2, 3], "stage")) == [2, 5, 10]
     assert store.stored() == 3
     # the same stage call again (a resumed run): every task from the store, none solved
-    resumed = RunContext(RunConfig(workers=2, seed=1), None, None, None, store=RunStore(tmp_path))
+    resumed = RunContext(RunConfig().replace({"workers": 2, "seed": 1}), None, None, None, store=RunStore(tmp_path))
     calls = []
 
     def counted(c, t):
@@ -69,7 +69,7 @@ def test_map_tasks_stores_each_result_and_a_resumed_map_solves_only_the_rest(tmp
 
 
 def test_local_executor_runs_tasks_in_worker_processes():
-    ctx = RunContext(RunConfig(workers=2), None, None, None)
+    ctx = RunContext(RunConfig().replace({"workers": 2}), None, None, None)
     out = dict(LocalExecutor(2).map_unordered(_pid, ctx, list(range(4))))
     assert sorted(out) == [0, 1, 2, 3] and os.getpid() not in out.values()
 

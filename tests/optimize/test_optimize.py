@@ -17,7 +17,7 @@ import pytest
 import pamkin
 from pamkin.optimize import actuator, report
 from pamkin.optimize import context as context_mod
-from pamkin.optimize.config import FAST_FIT, RunConfig, load_config
+from pamkin.optimize.config import FAST_FIT, RunConfig, config_changes, load_config
 from pamkin.optimize.context import PASS_MARGIN, RunContext
 from pamkin.optimize.executor import map_tasks
 from pamkin.optimize.pipeline import run, solve_all
@@ -62,8 +62,7 @@ def test_known_optimum_is_recovered():
         return truth_robot.evaluate(q).torques[:, 0, :]
 
     seed = Pam(1, "test", (), "angle", (), 10, 1, rest, tendon, (origin, PathPoint("i", "arm", (0.04, -0.10, 0.0))))
-    cfg = RunConfig(**FAST_FIT, regularization=0.0, fix_lengths=True, bone_clearance=False, n_primary=31,
-                    min_point_distance_m=0.0, regions={"1.o": [0.0, 0.0, 0.0], "1.i": [0.03, 0.03, 0.0]})
+    cfg = RunConfig().replace({**FAST_FIT, "weights.regularization": 0.0, "limits.fix_lengths": True, "limits.bone_clearance": False, "samples.primary": 31, "limits.min_point_distance_m": 0.0, "regions": {"1.o": [0.0, 0.0, 0.0], "1.i": [0.03, 0.03, 0.0]}})
     data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
     seed_points = [np.array(p.location) for p in seed.points]
     regions = [np.array(cfg.region(1, p.name)) for p in seed.points]
@@ -80,7 +79,7 @@ def semimem_problem():
     human = pamkin.gait2392()
     robot = thesis_robot()
     pam = robot.design.pam(5)
-    cfg = RunConfig(**FAST_FIT)
+    cfg = RunConfig().replace({**FAST_FIT})
     data = actuator_data(pam, human, load_rom("robot_thesis", "r"), cfg, robot.design.fitting_length_m)
     seed = [np.array(p.location) for p in pam.points]
     regions = [np.array(cfg.region(5, p.name)) for p in pam.points]
@@ -108,8 +107,7 @@ def test_casadi_torque_equals_numpy_pipeline(semimem_problem):
 def test_infeasible_run_is_reported_and_writes_nothing(tmp_path):
     design_copy = tmp_path / "design.yaml"         # --apply's file (the robot's own data is never a target)
     before = _digest(ROBOT_DESIGN)
-    cfg = RunConfig(**{**FAST_FIT, "multistart": 0}, actuators=[12], workers=1, diameters_mm=[40], max_parallel=1,
-                    kmax_scale=0.01, pretension_scale=0.0, max_iter=200)   # no strain can satisfy both
+    cfg = RunConfig().replace({**FAST_FIT, "first_fit.multistart": 0, "actuators": [12], "workers": 1, "first_fit.diameters_mm": [40], "first_fit.max_parallel": 1, "limits.kmax_scale": 0.01, "limits.pretension_scale": 0.0, "first_fit.max_iter": 200})   # no strain can satisfy both
     with pytest.raises(InfeasibleError, match=r"actuator 12 Soleus.*contraction <= kmax"):
         run(cfg, tmp_path / "run", apply=design_copy)
     assert _digest(ROBOT_DESIGN) == before and not design_copy.exists()
@@ -121,7 +119,7 @@ def test_infeasible_run_is_reported_and_writes_nothing(tmp_path):
 def test_apply_and_warm_start(tmp_path, monkeypatch):
     design_copy = tmp_path / "design.yaml"         # --apply FILE: the design there, its URDF beside it
     urdf_copy = tmp_path / "design.urdf"
-    cfg = RunConfig(**{**FAST_FIT, "multistart": 0}, actuators=[26], workers=1, diameters_mm=[20], max_parallel=1)
+    cfg = RunConfig().replace({**FAST_FIT, "first_fit.multistart": 0, "actuators": [26], "workers": 1, "first_fit.diameters_mm": [20], "first_fit.max_parallel": 1})
     s1 = run(cfg, tmp_path / "run1", apply=design_copy)
     a1 = s1["actuators"][0]
     assert s1["applied"] == str(design_copy) and a1["nrmse_after"] < a1["nrmse_before"]
@@ -137,8 +135,7 @@ def test_apply_and_warm_start(tmp_path, monkeypatch):
     assert np.allclose(model.frames[fid].placement.translation - model.frames[model.getFrameId("pelvis")].placement.translation,
                        new.points[0].location, atol=1e-12)
     # warm start from that run: the objective cannot get worse
-    cfg2 = RunConfig(**{**FAST_FIT, "multistart": 0}, actuators=[26], workers=1, diameters_mm=[20], max_parallel=1,
-                     warm_start=str(tmp_path / "run1"))
+    cfg2 = RunConfig().replace({**FAST_FIT, "first_fit.multistart": 0, "actuators": [26], "workers": 1, "first_fit.diameters_mm": [20], "first_fit.max_parallel": 1, "warm_start": str(tmp_path / "run1")})
     import matplotlib.axes
 
     import matplotlib.figure
@@ -167,20 +164,23 @@ def test_apply_and_warm_start(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("text,match", [
     ("workers = 2\nbogus = 1\n", "unknown key 'bogus'"),
-    ("[samples]\nprimary = 1\n", "samples.primary: must be >= 2"),
-    ("diameters_mm = [12]\n", "diameters_mm"),
+    ("[samples]\nprimary = 1\n", "samples.primary: must lie in \\[2, 201\\]"),
+    ("[first_fit]\ndiameters_mm = [12]\n", "first_fit.diameters_mm"),
     ("[regions]\n\"6.p2\" = -0.1\n", "regions.6.p2"),
     ("workers = \n", "not valid TOML"),
-    ("max_solve_seconds = -1\n", "max_solve_seconds: must be >= 0"),
-    ("[limits]\nbone_mesh = false\npam_clearance = true\n", "pam_clearance: needs limits.bone_mesh"),
-    ("[limits]\nbone_mesh = false\nrollers = true\n", "rollers: needs limits.bone_mesh"),
-    ("[limits]\nbone_mesh = 1\n", "limits.bone_mesh: must be true or false"),
+    ("[first_fit]\nmax_solve_seconds = -1\n", "first_fit.max_solve_seconds: must lie in \\[0, 86400\\]"),
+    ("[bone_rounds]\nenabled = false\n[clearance]\nenabled = true\n", "clearance.enabled: needs bone_rounds.enabled"),
+    ("[bone_rounds]\nenabled = false\n[rollers]\nenabled = true\n", "rollers.enabled: needs bone_rounds.enabled"),
+    ("[bone_rounds]\nenabled = 1\n", "bone_rounds.enabled: must be true or false"),
     ("[limits]\none_segment_actuators = [0]\n", "limits.one_segment_actuators: must be distinct actuator ids"),
     ("[limits]\none_segment_actuators = 13\n", "limits.one_segment_actuators: must be a list of integers"),
-    ("[limits]\nmount_cost = -0.1\n", "limits.mount_cost: must be >= 0"),
-    ("[limits]\nmount = \"yes\"\n", "limits.mount: must be true or false"),
-    ("[limits]\nresize_above = -1\n", "limits.resize_above: must be >= 0"),
-    ("[limits]\nmax_mass_kg = -1\n", "limits.max_mass_kg: must be >= 0"),
+    ("[mount]\ncost = -0.1\n", "mount.cost: must lie in \\[0, 100\\]"),
+    ("[mount]\nenabled = \"yes\"\n", "mount.enabled: must be true or false"),
+    ("[resize]\nabove = -1\n", "resize.above: must be >= 0"),
+    ("[mass]\nmax_kg = -1\n", "mass.max_kg: must lie in \\[0, 1000\\]"),
+    ("[limits]\nmount_cost = 0.2\n", "unknown key mount.cost \\(moved: it is mount.cost now\\)"),
+    ("[unknown_stage]\nx = 1\n", "unknown section 'unknown_stage'"),
+    ("[weights]\nmass = -0.5\n", "weights.mass: must be >= 0"),
 ])
 def test_bad_config(tmp_path, text, match):
     f = tmp_path / "run.toml"
@@ -193,11 +193,11 @@ def test_roller_stage_follows_the_bone_meshes(tmp_path):
     """The roller stage needs the bone meshes: a run description that switches the meshes off switches it off
     too unless it asks for it (then the error above); off by default."""
     f = tmp_path / "run.toml"
-    assert not RunConfig().rollers and not RunConfig(**FAST_FIT).rollers
-    f.write_text("[limits]\nbone_mesh = false\n")
-    assert not load_config(f).rollers
-    f.write_text("[limits]\nrollers = true\n")
-    assert load_config(f).rollers and load_config(f).bone_mesh
+    assert not RunConfig().rollers.enabled and not RunConfig().replace({**FAST_FIT}).rollers.enabled
+    f.write_text("[bone_rounds]\nenabled = false\n")
+    assert not load_config(f).rollers.enabled
+    f.write_text("[rollers]\nenabled = true\n")
+    assert load_config(f).rollers.enabled and load_config(f).bone_rounds.enabled
 
 
 def test_one_segment_actuators_must_name_actuators_of_the_design(tmp_path):
@@ -210,7 +210,7 @@ def test_one_segment_actuators_must_name_actuators_of_the_design(tmp_path):
         load_config(f).check_design(small)
     RunConfig().check_design(small)
     assert RunConfig().one_segment_for(13) and not RunConfig().one_segment_for(4)
-    assert RunConfig(one_segment=True, one_segment_actuators=[]).one_segment_for(4)
+    assert RunConfig().replace({"limits.one_segment": True, "limits.one_segment_actuators": []}).one_segment_for(4)
 
 
 def test_config_regions(tmp_path):
@@ -240,7 +240,7 @@ def test_default_run_on_the_hip_group(tmp_path):
     from pamkin.human.bones import BoneSet
     from pamkin.robot.biped import robot_skeleton
 
-    cfg = RunConfig(actuators=[24, 25, 26, 27, 28, 29])
+    cfg = RunConfig().replace({"actuators": [24, 25, 26, 27, 28, 29]})
     s = run(cfg, tmp_path / "run")
     design = load_design(tmp_path / "run" / "design.yaml")
     assert len(design.pams) == 29 and 2 * sum(p.n_parallel for p in design.pams) <= 60
@@ -330,10 +330,7 @@ def test_whole_vector_term_drives_the_off_axis_torque_to_its_target():
     peak = np.abs(target(q_test)[:, human.coordinates.index("knee_angle_r")]).max()
     errors = {}
     for w in (0.0, 1.0):
-        cfg = RunConfig(**{**FAST_FIT, "rated_force": False, "n_random": 60}, regularization=0.0,
-                        fix_lengths=True, bone_clearance=False, one_segment=False,
-                        gait_samples=False, weight_secondary=0.0, weight_whole_vector=w, min_point_distance_m=0.0,
-                        regions={"4": [0.04, 0.04, 0.04]})
+        cfg = RunConfig().replace({**FAST_FIT, "limits.rated_force": False, "samples.random": 60, "weights.regularization": 0.0, "limits.fix_lengths": True, "limits.bone_clearance": False, "limits.one_segment": False, "samples.gait": False, "weights.secondary": 0.0, "weights.whole_vector": w, "limits.min_point_distance_m": 0.0, "regions": {"4": [0.04, 0.04, 0.04]}})
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             data = actuator_data(seed, human, rom, cfg, 0.0125, target=target)
@@ -373,8 +370,7 @@ def test_one_segment_constraint_puts_the_pam_on_one_straight_segment():
     def target(q):
         return 0.5 * seed_robot.evaluate(q).torques[:, 0, :]
 
-    cfg = RunConfig(**FAST_FIT, regularization=0.0, bone_clearance=False, one_segment=True, n_primary=21,
-                    regions={"1": [0.03, 0.03, 0.0]})
+    cfg = RunConfig().replace({**FAST_FIT, "weights.regularization": 0.0, "limits.bone_clearance": False, "limits.one_segment": True, "samples.primary": 21, "regions": {"1": [0.03, 0.03, 0.0]}})
     data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
     seed_points = [np.array(p.location) for p in seed.points]
     regions = [np.array(cfg.region(1, p.name)) for p in seed.points]
@@ -432,11 +428,11 @@ def test_unit_budget_choice_is_the_exact_optimum():
 
 def test_unit_budget_config_errors(tmp_path):
     f = tmp_path / "run.toml"
-    f.write_text("[limits]\nmax_units = -2\n")
-    with pytest.raises(DataFileError, match="limits.max_units: must be >= 0"):
+    f.write_text("[unit_budget]\nmax_units = -2\n")
+    with pytest.raises(DataFileError, match="unit_budget.max_units: must lie in \\[0, 10000\\]"):
         load_config(f)
-    f.write_text("actuators = [4, 5]\n[limits]\nmax_units = 40\n")
-    with pytest.raises(DataFileError, match=r"limits.max_units: 40 PAM units cannot hold one PAM per actuator.*"
+    f.write_text("actuators = [4, 5]\n[unit_budget]\nmax_units = 40\n")
+    with pytest.raises(DataFileError, match=r"unit_budget.max_units: 40 PAM units cannot hold one PAM per actuator.*"
                                             r"the 2 optimised actuators need 4 and the others keep 50"):
         load_config(f).check_design(load_design())
 
@@ -444,10 +440,9 @@ def test_unit_budget_config_errors(tmp_path):
 def test_example_configs_are_the_default_and_the_fast_fit():
     """examples/optimize_v2.toml spells out the defaults; examples/optimize_fast.toml is FAST_FIT."""
     root = EXAMPLES
-    for path, expected in ((root / "optimize_v2.toml", RunConfig()), (root / "optimize_fast.toml", RunConfig(**FAST_FIT))):
+    for path, expected in ((root / "optimize_v2.toml", RunConfig()), (root / "optimize_fast.toml", RunConfig().replace({**FAST_FIT}))):
         cfg = load_config(path)
-        diff = [f.name for f in dataclasses.fields(cfg) if f.name != "source"
-                and getattr(cfg, f.name) != getattr(expected, f.name)]
+        diff = list(config_changes(cfg, expected))
         assert diff == [], (path.name, diff)
 
 
@@ -457,14 +452,13 @@ def test_reference_configs_switch_off_exactly_the_buildability_limits():
     examples/reference_bone_only.toml is the default run without the one-segment stage."""
     root = EXAMPLES
     default = RunConfig()
-    for name, expected in (("reference_unbuildable.toml", {"bone_mesh": False, "bone_clearance": False,
-                                                             "sensitivity_pct": 0.0, "mount": False}),
-                           ("reference_bone_only.toml", {"mount": False})):
+    for name, expected in (("reference_unbuildable.toml", {"bone_rounds.enabled": False, "limits.bone_clearance": False,
+                                                             "limits.sensitivity_pct": 0.0, "mount.enabled": False}),
+                           ("reference_bone_only.toml", {"mount.enabled": False})):
         cfg = load_config(root / name)
-        diff = {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg) if f.name != "source"
-                and getattr(cfg, f.name) != getattr(default, f.name)}
+        diff = config_changes(cfg, default)
         assert diff == expected, name
-        assert cfg.rated_force and cfg.max_units == 60
+        assert cfg.limits.rated_force and cfg.unit_budget.max_units == 60
 
 
 def test_fit_cost_of_the_bone_rounds_is_named():
@@ -560,8 +554,7 @@ def test_sensitivity_limit_bounds_the_torque_change_of_a_1_mm_attachment_error()
                (origin, PathPoint("i", "arm", (0.04, -0.10, 0.0))))
     out = {}
     for pct in (0.0, 3.0):
-        cfg = RunConfig(**{**FAST_FIT, "sensitivity_pct": pct}, regularization=0.0, bone_clearance=False,
-                        n_primary=31, min_point_distance_m=0.0, regions={"1": [0.03, 0.03, 0.0]})
+        cfg = RunConfig().replace({**FAST_FIT, "limits.sensitivity_pct": pct, "weights.regularization": 0.0, "limits.bone_clearance": False, "samples.primary": 31, "limits.min_point_distance_m": 0.0, "regions": {"1": [0.03, 0.03, 0.0]}})
         data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
         pts = [np.array(p.location) for p in seed.points]
         prob = ActuatorProblem(data, cfg, 10, pts, [np.array(cfg.region(1, p.name)) for p in seed.points])
@@ -631,8 +624,7 @@ def test_limit_check_finds_a_held_out_excess_and_tightening_removes_it():
     def target(q):
         return 0.2 * target_robot.evaluate(q).torques[:, 0, :]     # weak: wants much contraction
 
-    cfg = RunConfig(**{**FAST_FIT, "rated_force": True}, regularization=0.0, bone_clearance=False, n_primary=11,
-                    min_point_distance_m=0.0, regions={"1": [0.0, 0.0, 0.0]})
+    cfg = RunConfig().replace({**FAST_FIT, "limits.rated_force": True, "weights.regularization": 0.0, "limits.bone_clearance": False, "samples.primary": 11, "limits.min_point_distance_m": 0.0, "regions": {"1": [0.0, 0.0, 0.0]}})
     data = actuator_data(seed, model, narrow, cfg, 0.0125, target=target)
     pts = [np.array(p.location) for p in seed.points]
     prob = ActuatorProblem(data, cfg, 10, pts, [np.zeros(3), np.zeros(3)])
@@ -683,7 +675,7 @@ def test_route_on_the_pelvis_and_torso_clears_its_left_copy():
     design = load_design(SPLIT_GLUTEAL_DESIGN)
     pam = design.pam(2)
     rom = load_rom("robot_thesis", "r")
-    cfg = RunConfig(**FAST_FIT)
+    cfg = RunConfig().replace({**FAST_FIT})
     data = actuator_data(pam, human, rom, cfg, design.fitting_length_m)
     assert data.mirrored
     seed = [np.array(p.location) for p in pam.points]
@@ -732,8 +724,7 @@ def test_unit_budget_caps_the_parallel_counts_tried():
     others = sum(p.n_parallel for p in design.pams if p.id != 26)
     counts = {}
     for spare in (0, 1):
-        cfg = RunConfig(**{**FAST_FIT, "multistart": 0, "max_units": 2 * (others + 1 + spare)}, actuators=[26],
-                        workers=1, diameters_mm=[20], max_parallel=3, walking_min=0.0)
+        cfg = RunConfig().replace({**FAST_FIT, "first_fit.multistart": 0, "unit_budget.max_units": 2 * (others + 1 + spare), "actuators": [26], "workers": 1, "first_fit.diameters_mm": [20], "first_fit.max_parallel": 3, "walking.min_fraction": 0.0})
         (r,), _ = solve_all(design, cfg, io.StringIO())
         counts[spare] = {a["n_parallel"] for a in r.attempts}
         assert r.success and r.n_parallel <= 1 + spare
@@ -752,8 +743,7 @@ def test_dominated_tries_are_left_out_and_change_nothing(monkeypatch):
 
     design = load_design()
     others = sum(p.n_parallel for p in design.pams if p.id != 26)
-    cfg = RunConfig(**{**FAST_FIT, "multistart": 0, "weight_mass": 0.5, "max_units": 2 * (others + 2)},
-                    actuators=[26], workers=1, diameters_mm=[10, 20, 40], max_parallel=2, walking_min=0.0)
+    cfg = RunConfig().replace({**FAST_FIT, "first_fit.multistart": 0, "weights.mass": 0.5, "unit_budget.max_units": 2 * (others + 2), "actuators": [26], "workers": 1, "first_fit.diameters_mm": [10, 20, 40], "first_fit.max_parallel": 2, "walking.min_fraction": 0.0})
     runs = {}
     for prune in (True, False):
         monkeypatch.setattr(actuator, "PRUNE_DOMINATED", prune)
@@ -765,7 +755,7 @@ def test_dominated_tries_are_left_out_and_change_nothing(monkeypatch):
     assert len(pruned.attempts) < len(full.attempts) and not full.skipped
     # the bound named is the 40 mm PAM's mass penalty at Festo's shortest resting length (120 mm), and the
     # full run's own 40 mm try scores above it
-    low = cfg.weight_mass * 2 * float(festo.pam_mass(festo.nominal_length_range(40)[0], 40))
+    low = cfg.weights.mass * 2 * float(festo.pam_mass(festo.nominal_length_range(40)[0], 40))
     assert f"its mass alone scores {low:.4g}" in next(s for s in pruned.skipped if s.startswith("40 mm x1 "))
     full40 = [a for a in full.attempts if (a["diameter_mm"], a["n_parallel"]) == (40, 1) and a["feasible"]]
     assert all(a["objective"] >= 0 for a in full40)
@@ -803,8 +793,7 @@ def test_a_diameter_stopped_at_a_cap_is_solved_again_from_the_feasible_fit(monke
 
     monkeypatch.setattr(ActuatorProblem, "solve", solve)
     monkeypatch.setattr(actuator, "RETRY_FORCE_RATIO", ratio)
-    cfg = RunConfig(**{**FAST_FIT, "multistart": 0}, actuators=[17], workers=1, diameters_mm=[10, 20],
-                    max_parallel=1, walking_min=0.0)
+    cfg = RunConfig().replace({**FAST_FIT, "first_fit.multistart": 0, "actuators": [17], "workers": 1, "first_fit.diameters_mm": [10, 20], "first_fit.max_parallel": 1, "walking.min_fraction": 0.0})
     runs = {}
     for on in (True, False):
         monkeypatch.setattr(actuator, "RETRY_CAPPED", on)
@@ -847,11 +836,10 @@ def test_run_walking_check_resizes_an_actuator_at_the_pressure_limit(tmp_path, m
 
     monkeypatch.setattr(actuator, "finish_choice", counted)
     outcome = {}
-    for case, extra in (("fixed route", {"region_m": 0.0, "bone_clearance": False}),
-                        ("v2 limits", {"n_random": 30, "rated_force": True, "sensitivity_pct": 9.0})):
+    for case, extra in (("fixed route", {"limits.region_m": 0.0, "limits.bone_clearance": False}),
+                        ("v2 limits", {"samples.random": 30, "limits.rated_force": True, "limits.sensitivity_pct": 9.0})):
         calls.clear()
-        cfg = RunConfig(**{**FAST_FIT, "multistart": 0, "design": "thesis", "max_units": 2 * (others + 1), **extra},
-                        actuators=[7], workers=1, diameters_mm=[10, 20], max_parallel=1, walking_min=0.95)
+        cfg = RunConfig().replace({**FAST_FIT, "first_fit.multistart": 0, "design": "thesis", "unit_budget.max_units": 2 * (others + 1), **extra, "actuators": [7], "workers": 1, "first_fit.diameters_mm": [10, 20], "first_fit.max_parallel": 1, "walking.min_fraction": 0.95})
         s = run(cfg, tmp_path / case)
         w = s["walking_check"]
         assert w["target"] == 0.95 and w["samples"] == 66
@@ -881,8 +869,7 @@ def _toy_spanning_solution(route, rom, factor: float, cfg_kw: dict | None = None
     def target(q):
         return factor * seed_robot.evaluate(q).torques[:, 0, :]
 
-    cfg = RunConfig(**{**FAST_FIT, "rated_force": True, **(cfg_kw or {})}, regularization=0.0,
-                    bone_clearance=False, n_primary=21, min_point_distance_m=0.0, regions={"1": [0.0, 0.0, 0.0]})
+    cfg = RunConfig().replace({**FAST_FIT, "limits.rated_force": True, **(cfg_kw or {}), "weights.regularization": 0.0, "limits.bone_clearance": False, "samples.primary": 21, "limits.min_point_distance_m": 0.0, "regions": {"1": [0.0, 0.0, 0.0]}})
     data = actuator_data(seed, model, rom, cfg, 0.0125, target=target)
     pts = [np.array(p.location) for p in seed.points]
     prob = ActuatorProblem(data, cfg, 10, pts, [np.zeros(3)] * len(pts))
@@ -922,7 +909,7 @@ def test_mount_stage_puts_the_pam_on_one_segment_of_the_fixed_route():
     spanning = solution_pam(seed, prob.finalize(sol))
     q, _ = model.grid(["angle"], 201, rom=rom)
     assert max(_body_room(spanning, model, q, j).min() for j in (0, 1)) < -0.05   # bends over v
-    mounted, info = mount_stage(prob, sol, seed, RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 10.0}),
+    mounted, info = mount_stage(prob, sol, seed, RunConfig().replace({**FAST_FIT, "limits.rated_force": True, "mount.cost": 10.0}),
                                 model, rom, solution_pam)
     assert info["mounted"], info
     assert np.allclose(np.array(mounted.points), np.array(sol.points))              # the route is kept
@@ -935,12 +922,12 @@ def test_mount_stage_puts_the_pam_on_one_segment_of_the_fixed_route():
     assert pam.resting_length_m < spanning.resting_length_m and pam.tendon_length_m > 0.05
     assert info["objective_after"] >= info["objective_before"] - 1e-9          # fewer choices: no better fit
     # a segment that runs through its own bone, left to the detours, is never mounted on
-    cfg10 = RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 10.0})
+    cfg10 = RunConfig().replace({**FAST_FIT, "limits.rated_force": True, "mount.cost": 10.0})
     _, other = mount_stage(prob, sol, seed, cfg10, model, rom, solution_pam, blocked=frozenset({j}))
     assert other.get("segment") != info["segment"]
     _, none = mount_stage(prob, sol, seed, cfg10, model, rom, solution_pam, blocked=frozenset({0, 1}))
     assert not none["mounted"] and none["reason"] == "in bone" and "its own bone" in none["line"]
-    kept, refused = mount_stage(prob, sol, seed, RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 0.0}),
+    kept, refused = mount_stage(prob, sol, seed, RunConfig().replace({**FAST_FIT, "limits.rated_force": True, "mount.cost": 0.0}),
                                 model, rom, solution_pam)
     if info["cost"] > 0:
         assert not refused["mounted"] and refused["reason"] == "fit cost" and kept is sol
@@ -952,7 +939,7 @@ def test_mount_stage_puts_the_pam_on_one_segment_of_the_fixed_route():
             seen.append((before, after))
             return "its fit fails both audit fit limits already (test)"
 
-        strict = RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 0.0})
+        strict = RunConfig().replace({**FAST_FIT, "limits.rated_force": True, "mount.cost": 0.0})
         again, accepted = mount_stage(prob, sol, seed, strict, model, rom, solution_pam, failing)
         assert accepted["mounted"] and accepted["failing_fit"].endswith("(test)")
         assert "accepted: its fit fails both audit fit limits already (test)" in accepted["line"]
@@ -973,7 +960,7 @@ def test_a_mounted_pam_is_recognised_and_keeps_its_segment():
     route = (PathPoint("o", "base", (0.03, 0.05, 0.0)), PathPoint("v", "base", (0.035, -0.12, 0.0)),
              PathPoint("i", "arm", (0.02, -0.03, 0.0)))
     model, seed, cfg, prob, sol = _toy_spanning_solution(route, rom, 0.6)
-    mounted, info = mount_stage(prob, sol, seed, RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 10.0}),
+    mounted, info = mount_stage(prob, sol, seed, RunConfig().replace({**FAST_FIT, "limits.rated_force": True, "mount.cost": 10.0}),
                                 model, rom, solution_pam)
     j = segment_names(seed).index(info["segment"])
     assert mounted_segment(prob, sol.z) is None and mounted_segment(prob, mounted.z) == j
@@ -1010,7 +997,7 @@ def test_resize_pass_chooses_the_diameter_on_the_fit_after_the_bone_rounds(monke
     ``resize_above`` gets its other same-count candidates through the rounds (the workers' function) where
     their score before the rounds was lower than its score after them; the lower score after the rounds
     is kept, a result clear of bone before one that is not; nothing else is touched."""
-    cfg = RunConfig(workers=1, resize_above=1.0)
+    cfg = RunConfig().replace({"workers": 1, "resize.above": 1.0})
 
     def solved(aid: int, d: int, objective: float, clear: bool = True, success: bool = True):
         r = _fake_result(aid, {})
@@ -1053,13 +1040,13 @@ def test_resize_pass_chooses_the_diameter_on_the_fit_after_the_bone_rounds(monke
     assert out[3] is now[3]
     # off: nothing tried
     calls.clear()
-    assert _stage(resize_stage, ctx, now, dataclasses.replace(cfg, resize_above=10.0), io.StringIO()) == now
+    assert _stage(resize_stage, ctx, now, cfg.replace({"resize.above": 10.0}), io.StringIO()) == now
     assert calls == []
     # resize_on = "validation": the held-out error decides (here sartorius' 10 mm try fits its training
     # poses better but its validation poses worse: 20 mm stays; gracilis' 40 mm the other way round)
     held = {(6, 10): 0.9, (6, 20): 0.5, (9, 10): 0.1, (9, 40): 0.3, (9, 20): 0.6, (4, 20): 1.0}
     monkeypatch.setattr(ctx, "validation_error_of", lambda: lambda r, k: held[(r.id, r.pam.diameter_mm)])
-    out = _stage(resize_stage, ctx, now, dataclasses.replace(cfg, resize_on="validation"), io.StringIO())
+    out = _stage(resize_stage, ctx, now, cfg.replace({"resize.on": "validation"}), io.StringIO())
     assert out[0].pam.diameter_mm == 20 and out[0].bone["log"][-1] == "  resize: kept 20 mm x1"
     assert out[0].bone["log"][-2].endswith(", validation 0.5)") and "score 4.605, validation 0.9 (now" in out[0].bone["log"][-2]
     assert out[1].pam.diameter_mm == 40 and "  resize: kept the 40 mm try: 40 mm x1 (was 20 mm x1)" in out[1].bone["log"]
@@ -1073,7 +1060,7 @@ def test_resize_pass_tries_blocks_throughout_where_the_stage_put_one(monkeypatch
     block-stage result, then to the direct one. Below the threshold, without a block, or switched off: no try."""
     from pamkin.robot.design import pam_unit_mass
 
-    cfg = RunConfig(workers=1, resize_above=1.0, block_refit_above=0.5)
+    cfg = RunConfig().replace({"workers": 1, "resize.above": 1.0, "resize.block_refit_above": 0.5})
 
     def solved(aid: int, objective: float, k: int = 1, d: int = 20):
         r = _fake_result(aid, {})
@@ -1096,11 +1083,11 @@ def test_resize_pass_tries_blocks_throughout_where_the_stage_put_one(monkeypatch
     ctx = RunContext(cfg, None, None, None)
     tasks = resize_stage.block_tasks(ctx, now, cfg)
     assert [(t[0], t[1], t[3]) for t in tasks] == [(0, (20, 1), 3), (1, (20, 1), 3)]
-    assert [(t[0], t[3]) for t in resize_stage.block_tasks(ctx, now, dataclasses.replace(cfg, resize_above=0.0))] == \
+    assert [(t[0], t[3]) for t in resize_stage.block_tasks(ctx, now, cfg.replace({"resize.above": 0.0}))] == \
         [(0, 3), (1, 3), (4, 3)]
     assert tasks[0][2] is now[0].direct.z          # the start where the first phase has no fit of that size
-    assert resize_stage.block_tasks(ctx, now, dataclasses.replace(cfg, block_refit_above=0.0)) == []
-    assert resize_stage.block_tasks(ctx, now, dataclasses.replace(cfg, mount_blocks=False)) == []
+    assert resize_stage.block_tasks(ctx, now, cfg.replace({"resize.block_refit_above": 0.0})) == []
+    assert resize_stage.block_tasks(ctx, now, cfg.replace({"mount.blocks": False})) == []
     # the design's mass given: a try whose added pulleys leave less than the headroom is not made (gracilis'
     # second pulley at 21.4 kg; biceps femoris is on a 3:1 block already)
     assert [t[0] for t in resize_stage.block_tasks(ctx, now, cfg, total_mass=21.0)] == [0, 1]
@@ -1145,17 +1132,17 @@ def test_resize_pass_tries_blocks_throughout_where_the_stage_put_one(monkeypatch
     step = mass(out[0].pam) - mass(now[0].pam)
     assert step > 0
     ctx = RunContext(cfg, seed, None, None)
-    (back,) = _stage(mass_stage, ctx, out[:1], dataclasses.replace(cfg, max_mass_kg=total - 0.5 * step), io.StringIO())
+    (back,) = _stage(mass_stage, ctx, out[:1], cfg.replace({"mass.max_kg": total - 0.5 * step}), io.StringIO())
     assert back.pam.transmission == 2 and back.objective == now[0].objective
-    (back,) = _stage(mass_stage, ctx, out[:1], dataclasses.replace(cfg, max_mass_kg=total - step - 1e-3), io.StringIO())
+    (back,) = _stage(mass_stage, ctx, out[:1], cfg.replace({"mass.max_kg": total - step - 1e-3}), io.StringIO())
     assert back.pam.transmission == 1 and back.objective == now[0].direct.objective
     # within the budget but not its headroom for a warm re-run: the block throughout goes back, the
     # one-segment stage's block (not a re-sizing try) stays
     assert mass_stage.BLOCK_TRY_HEADROOM_KG == 0.5
-    (back,) = _stage(mass_stage, ctx, out[:1], dataclasses.replace(cfg, max_mass_kg=total + 0.1), io.StringIO())
+    (back,) = _stage(mass_stage, ctx, out[:1], cfg.replace({"mass.max_kg": total + 0.1}), io.StringIO())
     assert back.pam.transmission == 2 and "less 0.5 kg for a warm re-run (blocks throughout)" in back.bone["log"][-1]
-    assert _stage(mass_stage, ctx, now[:1], dataclasses.replace(cfg, max_mass_kg=total + 0.1), io.StringIO())[0] is now[0]
-    assert _stage(mass_stage, ctx, out[:1], dataclasses.replace(cfg, max_mass_kg=total + 0.6), io.StringIO())[0] is out[0]
+    assert _stage(mass_stage, ctx, now[:1], cfg.replace({"mass.max_kg": total + 0.1}), io.StringIO())[0] is now[0]
+    assert _stage(mass_stage, ctx, out[:1], cfg.replace({"mass.max_kg": total + 0.6}), io.StringIO())[0] is out[0]
 
 
 def test_mass_pass_takes_blocks_off_while_over_the_budget():
@@ -1165,7 +1152,7 @@ def test_mass_pass_takes_blocks_off_while_over_the_budget():
     from pamkin.robot.design import pam_unit_mass
 
     seed = load_design("thesis")
-    cfg = RunConfig(workers=1)
+    cfg = RunConfig().replace({"workers": 1})
 
     def solved(aid: int, objective: float, block: bool):
         r = _fake_result(aid, {})
@@ -1198,16 +1185,16 @@ def test_mass_pass_takes_blocks_off_while_over_the_budget():
     budget = total - 0.5 * saved[first]
     stream = io.StringIO()
     ctx = RunContext(cfg, seed, None, None)
-    out = _stage(mass_stage, ctx, results, dataclasses.replace(cfg, max_mass_kg=budget), stream)
+    out = _stage(mass_stage, ctx, results, cfg.replace({"mass.max_kg": budget}), stream)
     assert [r.pam.transmission for r in out] == [1 if r.id == first else (2 if r.direct else 1) for r in results]
     gone = next(r for r in out if r.id == first)
     assert gone is not results[[r.id for r in results].index(first)] and "comes off again" in gone.bone["log"][-1]
     assert base + sum(mass(r.pam) for r in out) <= budget
     assert stream.getvalue().count("comes off again") == 1
     # within the budget: unchanged; below what removing every block reaches: all off, and said
-    assert _stage(mass_stage, ctx, results, dataclasses.replace(cfg, max_mass_kg=total + 1e-9), io.StringIO()) == results
+    assert _stage(mass_stage, ctx, results, cfg.replace({"mass.max_kg": total + 1e-9}), io.StringIO()) == results
     stream = io.StringIO()
-    out = _stage(mass_stage, ctx, results, dataclasses.replace(cfg, max_mass_kg=1.0), stream)
+    out = _stage(mass_stage, ctx, results, cfg.replace({"mass.max_kg": 1.0}), stream)
     assert all(r.pam.transmission == 1 for r in out) and "no pulley block is left to take off" in stream.getvalue()
 
 
@@ -1225,7 +1212,7 @@ def test_default_run_puts_gracilis_on_a_block_throughout(tmp_path):
     from pamkin.robot.biped import robot_skeleton
 
     stream = io.StringIO()
-    run(RunConfig(actuators=[9]), tmp_path / "run", stream=stream)
+    run(RunConfig().replace({"actuators": [9]}), tmp_path / "run", stream=stream)
     out = stream.getvalue()
     assert "1 pulley block(s) throughout for 1 actuator(s)" in out, out
     assert re.search(r"actuator 9 Gracilis: resize: kept the 20 mm try with the 3:1 block throughout: 20 mm x1 on a "
@@ -1252,7 +1239,7 @@ def test_default_run_keeps_the_mass_budget(tmp_path):
     takes off the block that loses least per kilogram — the adductors' — and the saved design is within it."""
     from pamkin.robot.design import pam_unit_mass
 
-    cfg = RunConfig(actuators=[1, 25])
+    cfg = RunConfig().replace({"actuators": [1, 25]})
     stream = io.StringIO()
     run(cfg, tmp_path / "run", stream=stream)      # (the audit is the CLI's, not run()'s)
     des = load_design(tmp_path / "run" / "design.yaml")
@@ -1276,12 +1263,12 @@ def test_map_hands_out_the_longest_tasks_first(workers):
     result once, whatever order they finish in."""
     tasks = [10, 11, 12, 13, 14]
     cost = [1.0, 5.0, 3.0, 5.0, 0.5]
-    ctx = RunContext(RunConfig(workers=workers), None, None, None, stream=io.StringIO())
+    ctx = RunContext(RunConfig().replace({"workers": workers}), None, None, None, stream=io.StringIO())
     out = map_tasks(ctx, _task_result, tasks, "test", cost=cost)
     assert sorted(r.id for r in out) == tasks
     if workers == 1:                                   # in-process: the order they were handed out
         assert [r.id for r in out] == [11, 13, 12, 10, 14]
-    plain = map_tasks(RunContext(RunConfig(workers=1), None, None, None, stream=io.StringIO()), _task_result, tasks,
+    plain = map_tasks(RunContext(RunConfig().replace({"workers": 1}), None, None, None, stream=io.StringIO()), _task_result, tasks,
                       "test")
     assert [r.id for r in plain] == tasks
 
@@ -1307,7 +1294,7 @@ def test_solves_run_on_one_blas_thread(workers, monkeypatch):
 
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "7")
     before = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
-    ctx = RunContext(RunConfig(workers=workers), None, None, None, stream=io.StringIO())
+    ctx = RunContext(RunConfig().replace({"workers": workers}), None, None, None, stream=io.StringIO())
     out = map_tasks(ctx, _blas_threads, [1, 2, 3, 4], "test")
     assert len(out) == 4 and all(r.threads and set(r.threads) == {1} for r in out)
     assert {r.env for r in out} == {"1"}
@@ -1448,7 +1435,7 @@ def test_reallocate_pass_moves_a_unit_to_where_it_makes_a_pam_pass(monkeypatch):
     every result as it was."""
     import types
 
-    cfg = RunConfig(workers=1)
+    cfg = RunConfig().replace({"workers": 1})
     errors = {(2, 2): (0.25, 0.39), (2, 1): (0.26, 0.92), (19, 1): (0.197, 0.197), (19, 2): (0.097, 0.097),
               (3, 1): (0.114, 0.291), (3, 2): (0.12, 0.27), (4, 1): (0.37, 0.77), (12, 1): (0.05, 0.05)}
 
@@ -1489,7 +1476,7 @@ def test_reallocate_pass_moves_a_unit_to_where_it_makes_a_pam_pass(monkeypatch):
     assert "(a unit to 19 Peroneus Tertius): validation 0.260/0.920 (was 0.250/0.390)" in out[0].bone["log"][-1]
     assert "unit reallocation: 2 Internal Oblique" in stream.getvalue()
     # the mass budget: the move is not kept, the donor keeps its units
-    out = _stage(reallocate_stage, ctx, now, dataclasses.replace(cfg, max_mass_kg=1.0), io.StringIO())
+    out = _stage(reallocate_stage, ctx, now, cfg.replace({"mass.max_kg": 1.0}), io.StringIO())
     assert [r.n_parallel for r in out] == [2, 1, 1, 1, 1]
     assert "no receiver passed with its unit" in out[0].bone["log"][-1]
     assert "not kept (mass" in out[1].bone["log"][-1]
@@ -1524,7 +1511,7 @@ def test_reallocate_pass_moves_a_unit_to_where_it_makes_a_pam_pass(monkeypatch):
     assert calls == []
     # a config that is not a bool is refused with its key
     with pytest.raises(DataFileError, match="reallocate"):
-        RunConfig(reallocate="yes").validate()
+        RunConfig().replace({"reallocate.enabled": "yes"}).validate()
 
 
 @pytest.mark.parametrize("case", ["as given", "solved", "fresh lengths"])
@@ -1623,7 +1610,7 @@ def test_the_bone_rounds_solver_leaves_the_capsule_rows_out():
     design = load_design("v2_seed")
     pam = design.pam(16)
     rom = load_rom(design.rom, "r")
-    cfg = RunConfig(**FAST_FIT)
+    cfg = RunConfig().replace({**FAST_FIT})
     data = actuator_data(pam, human, rom, cfg, design.fitting_length_m)
     seed = [np.array(p.location) for p in pam.points]
     regions = [np.array(cfg.region(16, p.name)) for p in pam.points]

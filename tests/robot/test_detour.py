@@ -189,7 +189,7 @@ def test_detour_pass_carries_a_result_round_its_bone(model, bones, monkeypatch):
     rom = load_rom("robot_thesis", "r")
     seed_design = load_design("v2_seed", bodies=model.bodies)
     final = design_from_dict({"pams": [SARTORIUS]}, "sar", model.bodies).pams[0]
-    cfg = RunConfig(workers=1)
+    cfg = RunConfig().replace({"workers": 1})
     data = [actuator_data(seed_design.pam(6), model, rom, cfg, seed_design.fitting_length_m)]
     ctx = RunContext(cfg, seed_design, model, rom, data=data, validation=None, bones=bones)
     given = ActuatorResult(6, final.name, final, "given", True, z=np.zeros(1), bone={"log": [], "clear": True})

@@ -139,9 +139,9 @@ def test_config_eyelets_default_apply_and_idempotent(human, bones, seed):
     assert [p for p in out.pams if p.id not in ids] == [p for p in seed.pams if p.id not in ids]
     again, lines2 = cfg.apply_eyelets(out, human, bones)           # a warm start's routes: left as they are
     assert again.pams == out.pams and all("already has a point on talus_r" in line for line in lines2)
-    assert RunConfig(**FAST_FIT).eyelets == {}
+    assert RunConfig().replace({**FAST_FIT}).eyelets == {}
     # only the actuators a run optimises get theirs (the others keep the seed's route and lengths)
-    sub, lines3 = RunConfig(actuators=[9, 19]).apply_eyelets(seed, human, bones)
+    sub, lines3 = RunConfig().replace({"actuators": [9, 19]}).apply_eyelets(seed, human, bones)
     assert [p.id for p in sub.pams if p != seed.pam(p.id)] == [19] and len(lines3) == 1
     # the default table skips what does not fit a design (here: a design without actuator 22)
     from pamkin.robot.design import Design
@@ -151,9 +151,9 @@ def test_config_eyelets_default_apply_and_idempotent(human, bones, seed):
     assert has_eyelet(out2.pam(19), "talus_r")
     # a table given in the config must fit
     with pytest.raises(DataFileError, match=r"eyelets.22: names no actuator"):
-        RunConfig(eyelets={"22": "talus_r"}, source="my.toml").apply_eyelets(small, human, bones)
+        RunConfig().replace({"eyelets": {"22": "talus_r"}, "source": "my.toml"}).apply_eyelets(small, human, bones)
     with pytest.raises(DataFileError, match=r"my.toml.*eyelets.19: actuator 19 Peroneus Tertius: no route"):
-        RunConfig(eyelets={"19": ["femur_r"]}, source="my.toml").apply_eyelets(seed, human, bones)
+        RunConfig().replace({"eyelets": {"19": ["femur_r"]}, "source": "my.toml"}).apply_eyelets(seed, human, bones)
 
 
 @pytest.mark.parametrize("text,match", [
@@ -208,7 +208,7 @@ def test_default_run_fits_peroneus_tertius_with_its_talus_eyelet(tmp_path):
     sk = robot_skeleton()
     human = pamkin.gait2392()
     errors = {}
-    for name, cfg in (("with", RunConfig(actuators=[19])), ("without", RunConfig(actuators=[19], eyelets={}))):
+    for name, cfg in (("with", RunConfig().replace({"actuators": [19]})), ("without", RunConfig().replace({"actuators": [19], "eyelets": {}}))):
         stream = io.StringIO()
         run(cfg, tmp_path / name, stream=stream)
         des = load_design(tmp_path / name / "design.yaml", bodies=sk.bodies, coordinates=sk.coordinates)
@@ -243,7 +243,7 @@ def test_warm_start_keeps_the_eyelets_of_actuators_not_optimised(human, bones, s
     from pamkin.optimize.config import RunConfig
     from pamkin.optimize.stages.seed import warm_seed
 
-    cfg = RunConfig(actuators=[9])
+    cfg = RunConfig().replace({"actuators": [9]})
     full, _ = dataclasses.replace(cfg, actuators=[]).apply_eyelets(seed, human, bones)
     warm = full.replace_pam(dataclasses.replace(full.pam(19), resting_length_m=0.3, tendon_length_m=0.1))
     sub, lines = cfg.apply_eyelets(seed, human, bones)

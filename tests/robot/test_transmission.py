@@ -4,6 +4,7 @@ one-segment stage's reach), the limit check, walking plans, OpenSim export, the 
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 
 import numpy as np
@@ -145,8 +146,7 @@ def test_optimiser_recovers_a_block_pam_and_agrees_with_the_numpy_pipeline(toy):
     def target(qq):
         return truth_robot.evaluate(qq).torques[:, 0, :]
 
-    cfg = RunConfig(**FAST_FIT, regularization=0.0, bone_clearance=False, n_primary=31, min_point_distance_m=0.0,
-                    regions={"1": [0.0, 0.0, 0.0]})
+    cfg = RunConfig().replace({**FAST_FIT, "weights.regularization": 0.0, "limits.bone_clearance": False, "samples.primary": 31, "limits.min_point_distance_m": 0.0, "regions": {"1": [0.0, 0.0, 0.0]}})
     seed, prob, sol = _fit(model, route, 2, rom, cfg, target)
     assert sol.success, sol.status
     assert sol.rest_length == pytest.approx(rest, abs=1e-4)
@@ -164,7 +164,7 @@ def test_optimiser_recovers_a_block_pam_and_agrees_with_the_numpy_pipeline(toy):
     eps = _robot(model, over).evaluate(q).strain[:, 0]
     kmax = float(festo.kmax(over.resting_length_m, 10))
     name = next(k for k in excess if "kmax" in k)
-    assert excess[name] == pytest.approx(eps.max() - (cfg.kmax_scale * kmax - 0.005), abs=1e-12)
+    assert excess[name] == pytest.approx(eps.max() - (cfg.limits.kmax_scale * kmax - 0.005), abs=1e-12)
 
 
 def test_block_puts_an_out_of_reach_pam_on_one_segment(toy):
@@ -183,8 +183,7 @@ def test_block_puts_an_out_of_reach_pam_on_one_segment(toy):
     def target(q):
         return 0.5 * direct.evaluate(q).torques[:, 0, :]
 
-    cfg = RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 10.0}, regularization=0.0,
-                    bone_clearance=False, n_primary=31, min_point_distance_m=0.0, regions={"1": [0.0, 0.0, 0.0]})
+    cfg = RunConfig().replace({**FAST_FIT, "limits.rated_force": True, "mount.cost": 10.0, "weights.regularization": 0.0, "limits.bone_clearance": False, "samples.primary": 31, "limits.min_point_distance_m": 0.0, "regions": {"1": [0.0, 0.0, 0.0]}})
     L = direct.evaluate(model.grid(["angle"], 201, rom=rom)[0]).lengths[:, 0]
     need1, most = reach_bound(L, 0.15, 10, cfg, FIT, 1)
     need2, _ = reach_bound(L, 0.15, 10, cfg, FIT, 2)
@@ -242,9 +241,7 @@ def _out_of_reach(model, route, diameters: list[int]):
     def target(q):
         return 0.5 * direct.evaluate(q).torques[:, 0, :]
 
-    cfg = RunConfig(**{**FAST_FIT, "rated_force": True, "mount_cost": 10.0}, regularization=0.0, mount_blocks=True,
-                    bone_clearance=False, n_primary=31, min_point_distance_m=0.0, regions={"1": [0.0, 0.0, 0.0]},
-                    diameters_mm=diameters)
+    cfg = RunConfig().replace({**FAST_FIT, "limits.rated_force": True, "mount.cost": 10.0, "weights.regularization": 0.0, "mount.blocks": True, "limits.bone_clearance": False, "samples.primary": 31, "limits.min_point_distance_m": 0.0, "regions": {"1": [0.0, 0.0, 0.0]}, "first_fit.diameters_mm": diameters})
     return rom, direct, target, cfg
 
 
@@ -274,7 +271,8 @@ def test_one_segment_stage_tries_a_block_on_the_fixed_route(toy):
     assert ev.strain.min() >= -festo.max_pretension(d) - 1e-6
     assert ev.unit_forces.max() <= festo.F_MAX_THEORETICAL[d] + 1e-6
     # a mount cost the block cannot meet: the direct PAM stays, and the log names the tries
-    strict = dataclasses.replace(cfg, mount_cost=-10.0)       # (the block fits this target better than direct)
+    strict = copy.deepcopy(cfg)                        # (the block fits this target better than direct;
+    strict.mount.cost = -10.0                          # below the range a run description may set)
     kept, p3, out2 = mount_block(prob, sol, info, seed, strict, model, rom, solution_pam)
     assert kept is sol and p3 is prob and not out2.get("mounted")
     assert "with a 2:1 pulley block on the same route: 10 mm:" in out2["line"]
@@ -293,7 +291,7 @@ def test_one_segment_stage_tries_a_block_on_the_fixed_route(toy):
     assert out4["mounted"] and out4["transmission"] == 2 and p4.k == 2 and asked and set(asked) == {(2, 2)}
     assert out4["failing_fit"].endswith("(test)")
     np.testing.assert_allclose(np.array(got3.points), np.array(sol.points), atol=0)
-    off = dataclasses.replace(cfg, mount_blocks=False)
+    off = cfg.replace({"mount.blocks": False})
     assert mount_block(prob, sol, info, seed, off, model, rom, solution_pam)[2] is info
     # tried where the stage found the PAM infeasible at 1:1 too (a block halves the stroke the limits see),
     # not where it fits at 1:1 at a fit cost
@@ -349,7 +347,7 @@ def test_block_goes_to_three_to_one_where_two_to_one_is_out_of_reach(toy):
     from pamkin.optimize.context import RunContext
 
     ctx = RunContext(cfg, None, model, rom)
-    got2, _, info2, direct = actuator.mount_actuator(ctx, prob, sol, seed, dataclasses.replace(cfg, mount=True))
+    got2, _, info2, direct = actuator.mount_actuator(ctx, prob, sol, seed, cfg.replace({"mount.enabled": True}))
     assert info2["transmission"] == 3 and got2.objective == got.objective
     assert direct is not None and direct[0] is sol and direct[2]["reason"] == "out of reach"
 

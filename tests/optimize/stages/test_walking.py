@@ -55,7 +55,7 @@ def test_walking_pass_reports_the_fraction_and_swaps_nothing_it_cannot_improve(s
         assert np.any(p.pressures[np.ix_(bad, cols)] >= p.p_max_Pa * (1 - 1e-6))
     human, rom = pamkin.gait2392(), load_rom(design.rom, "r")
     for target, expect in ((0.0, None), (1.0, "no swap of the actuators at the pressure limit")):
-        cfg = RunConfig(walking_min=target)
+        cfg = RunConfig().replace({"walking.min_fraction": target})
         out, results, lines = walking.walking_pass(design, [], [], cfg, 30, skeleton, trial, human, rom)
         assert out is design and results == []
         assert f"{100 * frac:.1f} % feasible, target {100 * target:.0f} %" in lines[0]
@@ -107,7 +107,7 @@ def test_walking_pass_keeps_the_swap_that_walks_most(skeleton):
 
     design = load_design("thesis", bodies=skeleton.bodies, coordinates=skeleton.coordinates)
     human, rom = pamkin.gait2392(), load_rom(design.rom, "r")
-    cfg = RunConfig(walking_min=0.95)
+    cfg = RunConfig().replace({"walking.min_fraction": 0.95})
     trial = walking.midpoint_trial(skeleton)
     tfl = design.pam(7)
     assert (tfl.diameter_mm, tfl.n_parallel) == (10, 1)

@@ -82,7 +82,7 @@ def test_problem_with_a_roller_matches_the_numpy_pipeline(skel):
 
     human = pamkin.gait2392()
     pam = load_design("thesis").pam(4)
-    cfg = RunConfig(**FAST_FIT)
+    cfg = RunConfig().replace({**FAST_FIT})
     data = actuator_data(pam, human, load_rom("robot_thesis", "r"), cfg, 0.0125)
     seed = [np.array(p.location) for p in pam.points]
     regions = [np.array(cfg.region(4, p.name)) for p in pam.points]
@@ -191,7 +191,7 @@ def _internal_oblique_result(monkeypatch):
     rom = load_rom("robot_thesis", "r")
     seed_design = load_design("v2_seed", bodies=human.bodies)
     final = design_from_dict({"pams": [INTERNAL_OBLIQUE]}, "io", human.bodies).pams[0]
-    cfg = RunConfig(rollers=True, workers=1)
+    cfg = RunConfig().replace({"rollers.enabled": True, "workers": 1})
     data = [actuator_data(seed_design.pam(2), human, rom, cfg, seed_design.fitting_length_m)]
     ctx = RunContext(cfg, seed_design, human, rom, data=data, validation=None, bones=BoneSet(human))
     seed, regions = ctx.route_box(seed_design.pam(2))
@@ -236,7 +236,7 @@ def test_roller_stage_on_internal_oblique(skel, monkeypatch, tmp_path):
     why = "without rollers: no clear route with rollers"
     (tmp_path / "summary.json").write_text(json.dumps({"bone_mesh": {"2": {"roller_stage": why}, "3": {}}}))
     assert roller_stage.warm_roller_outcomes(tmp_path) == {2: why}
-    warm_cfg = RunConfig(rollers=True, workers=1, warm_start=str(tmp_path))
+    warm_cfg = RunConfig().replace({"rollers.enabled": True, "workers": 1, "warm_start": str(tmp_path)})
     ctx.warm_ids = {2}
     progress = io.StringIO()
     again = _stage(roller_stage, ctx, [given], warm_cfg, progress)[0]
@@ -327,7 +327,7 @@ def test_detour_pass_measures_a_rollered_segment_round_its_roller(monkeypatch):
     human = pamkin.gait2392()
     rom = load_rom("robot_thesis", "r")
     seed_design = load_design("v2_seed", bodies=human.bodies)
-    cfg = RunConfig(workers=1)
+    cfg = RunConfig().replace({"workers": 1})
     data = [actuator_data(seed_design.pam(10), human, rom, cfg, seed_design.fitting_length_m)]
     bones = BoneSet(human)
     ctx = RunContext(cfg, seed_design, human, rom, data=data, bones=bones)
