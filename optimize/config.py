@@ -304,7 +304,9 @@ class RunConfig:
             section, _, name = dotted.rpartition(".")
             target = getattr(new, section) if section else new
             if section not in ("", *SECTIONS) or name not in {f.name for f in fields(target)}:
-                raise ConfigurationError(f"unknown config key {dotted!r}")
+                moved = MOVED.get(dotted)
+                raise ConfigurationError(f"unknown config key {dotted!r}" + (f" (moved: it is {moved} now)" if moved
+                                                                              else ""))
             setattr(target, name, copy.deepcopy(value))
         new.validate()
         return new

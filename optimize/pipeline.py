@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import os
 import sys
+import shutil
 import tempfile
 import time
 from collections.abc import Callable
@@ -56,11 +57,13 @@ from pamkin.optimize.store import RunStore
 from pamkin.optimize.verify import summarize
 
 from pamkin.audit.compare import finite_or_none
-from pamkin.errors import PamkinError
+from pamkin.errors import OutputError, PamkinError
 from pamkin.human.bones import BoneSet
 from pamkin.human.model import gait2392
 from pamkin.human.rom import load_rom
-from pamkin.human.urdf import atomic_write, render_robot_urdf
+from pamkin.outputs import check_output_file, check_output_folder
+from pamkin.human.urdf import render_robot_urdf
+from pamkin.outputs import write_file
 from pamkin.robot.design import Design, save_design
 
 
@@ -143,23 +146,25 @@ def solve_all(seed: Design, cfg: RunConfig, stream=sys.stderr, warm_ids: set[int
     return run_stages(ctx), ctx
 
 
-def check_out_dir(out_dir: Path, resume: bool) -> None:
-    """Refuse to start a run into a folder holding another run's files (``resume``: the folder must hold a
-    run's ``config.json``)."""
+def check_out_dir(out_dir: Path, resume: bool, force: bool = False) -> None:
+    """Refuse to start a run into a folder holding files (``resume``: the folder must hold a run's
+    ``config.json``; ``force``: an existing folder is replaced whole — removed here, before the run)."""
     if resume:
         if not (out_dir / "config.json").is_file():
-            raise PamkinError(f"{out_dir}: not a run folder to resume (no config.json)")
+            raise OutputError(str(out_dir), "not a run folder to resume (no config.json)")
         return
-    if out_dir.exists() and not out_dir.is_dir():
-        raise PamkinError(f"{out_dir}: exists and is not a folder")
-    held = [name for name in RUN_FILES if (out_dir / name).exists()]
-    if held or (out_dir / "tasks").exists():
-        raise PamkinError(f"{out_dir}: holds a run already ({', '.join(held) or 'tasks/'}); choose a new folder, "
-                          f"or continue it with --resume {out_dir}")
+    check_output_folder(out_dir, force=True)            # a file, or a folder below a file: refused
+    if out_dir.is_dir() and any(out_dir.iterdir()):
+        if not force:
+            held = [name for name in RUN_FILES if (out_dir / name).exists()]
+            what = f"a run already ({', '.join(held)})" if held else "files already"
+            raise OutputError(str(out_dir), f"holds {what}; choose a new folder, continue it with --resume "
+                                            f"{out_dir}, or replace it whole with --force")
+        shutil.rmtree(out_dir)
 
 
 def run(cfg: RunConfig, out_dir: Path, apply: str | os.PathLike | None = None, stream=sys.stderr,
-        on_design=None, executor=None, resume: bool = False) -> dict:
+        on_design=None, executor=None, resume: bool = False, force: bool = False) -> dict:
     """Run an optimisation into ``out_dir``; optionally write the result to the design file ``apply``.
 
     Args:
@@ -173,19 +178,22 @@ def run(cfg: RunConfig, out_dir: Path, apply: str | os.PathLike | None = None, s
         executor: Runs the per-actuator tasks (:mod:`optimize.executor`; default: ``cfg.workers`` local
             processes).
         resume: Continue the killed run in ``out_dir``: its finished tasks are read back, not solved again.
+        force: Replace an existing ``out_dir`` whole (default: refuse a folder holding files).
 
     Returns:
         The summary (also written to ``out_dir/summary.json``).
     """
     t0 = time.perf_counter()
     out_dir = Path(out_dir)
-    check_out_dir(out_dir, resume)
+    check_out_dir(out_dir, resume, force)
+    if apply is not None:
+        check_output_file(apply)
     seed, warm_ids, eyelets = seed_stage.prepare(cfg)
     for line in eyelets:
         print(line, file=stream, flush=True)
     out_dir.mkdir(parents=True, exist_ok=True)
     if not resume:
-        atomic_write(out_dir / "config.json", json.dumps(config_to_dict(cfg), indent=2))
+        write_file(out_dir / "config.json", json.dumps(config_to_dict(cfg), indent=2))
     store = RunStore(out_dir)
     if resume:
         print(f"resuming {out_dir}: {store.stored()} finished tasks stored", file=stream, flush=True)
@@ -213,7 +221,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: str | os.PathLike | None = None, s
     log.extend(ctx.pam_ends)
     log.extend(f"fit limits: {line}" for line in summary.get("fit_limits_and_bone", []))
     log.append(f"total {summary['total_seconds']} s (solves {solve_seconds:.1f} s)")
-    atomic_write(out_dir / "log.txt", "\n".join(log) + "\n")
+    write_file(out_dir / "log.txt", "\n".join(log) + "\n")
     try:
         check_results(results)
     except InfeasibleError:
@@ -296,7 +304,7 @@ def apply_design(design: Design, design_path: Path, urdf_path: Path | None = Non
         save_design(design, tmp_design, header)
         urdf = render_robot_urdf(design_path=tmp_design).replace(str(Path(tmp)), "")
     save_design(design, design_path, header)
-    atomic_write(urdf_path, urdf)
+    write_file(urdf_path, urdf)
     return design_path, urdf_path
 
 
@@ -316,4 +324,4 @@ def _run_header(out_dir: Path, cfg: RunConfig) -> str:
 def _write_summary(out_dir: Path, summary: dict) -> None:
     """``summary.json`` as strict JSON (atomically): a non-finite number (an undefined or failing-as-infinite
     error, a failed solve's objective) is written as ``null``, which every JSON reader accepts."""
-    atomic_write(out_dir / "summary.json", json.dumps(finite_or_none(summary), indent=2, allow_nan=False))
+    write_file(out_dir / "summary.json", json.dumps(finite_or_none(summary), indent=2, allow_nan=False))

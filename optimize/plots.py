@@ -9,7 +9,7 @@ import numpy as np
 
 from pamkin.human.model import gait2392
 from pamkin.human.rom import load_rom
-from pamkin.human.urdf import atomic_write
+from pamkin.outputs import write_file
 from pamkin.robot.biped import PamRobot, robot_skeleton
 from pamkin.robot.design import Design
 
@@ -61,5 +61,5 @@ def before_after_plot(seed: Design, new: Design, path: Path, n: int = 61, seed_l
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=70)
     plt.close(fig)
-    atomic_write(Path(path), buf.getvalue())
+    write_file(Path(path), buf.getvalue())
     return Path(path)

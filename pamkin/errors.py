@@ -95,3 +95,12 @@ class SolverError(PamkinError):
 
 class BuildError(PamkinError):
     """Generating a URDF from Xacro sources failed."""
+
+
+class OutputError(PamkinError):
+    """An output path that cannot take what is to be written there (a folder for a file, an existing run or
+    report folder); raised before any work, so nothing is computed for nothing and nothing is lost."""
+
+    def __init__(self, path: str, message: str) -> None:
+        self.path = str(path)
+        super().__init__(f"{self.path}: {message}")

@@ -44,7 +44,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from pamkin._resources import SHARED_DIR, data_file
 from pamkin.audit.compare import compare_pam, failing_as_worst, finite_or_none
@@ -72,7 +71,7 @@ from pamkin.robot.pam_body import (
     segment_names,
 )
 from pamkin.robot.rollers import open_ended, roller_axis_points
-from pamkin.yamlio import safe_load
+from pamkin.yamlio import strict_load
 
 #: Random stream of the audit's poses (``SeedSequence(seed, spawn_key=(AUDIT_STREAM,))``); an
 #: optimiser drawing random poses must use another stream (see :func:`random_poses`).
@@ -132,11 +131,11 @@ def load_limits(path: str | os.PathLike | None = None) -> dict:
     """
     def read(p: Path) -> dict:
         try:
-            data = safe_load(p.read_text())
+            data = strict_load(p.read_bytes(), str(p))     # UTF-8, no duplicate keys, no aliases
         except FileNotFoundError:
             raise DataFileError(str(p), "file not found") from None
-        except (OSError, yaml.YAMLError) as e:
-            raise DataFileError(str(p), f"not valid YAML: {e}") from None
+        except OSError as e:
+            raise DataFileError(str(p), f"cannot read: {e}") from None
         if not isinstance(data, dict):
             raise DataFileError(str(p), "a limits file is a mapping with 'thresholds' and/or 'limits'")
         return data

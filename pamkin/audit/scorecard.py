@@ -8,6 +8,7 @@ import os
 from pathlib import Path
 
 import numpy as np
+from pamkin.outputs import write_figure
 
 
 def _fmt(v, nd: int = 3) -> str:
@@ -191,9 +192,7 @@ def plot_criteria(res, path: str | os.PathLike) -> Path:
     fig.suptitle(f"pamkin audit: {res.design} ({verdict})", fontsize=11)
     fig.supxlabel("PAM id (red: beyond the threshold, dashed)")
     fig.tight_layout()
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp.png")
-    fig.savefig(tmp, dpi=80)
-    plt.close(fig)
-    os.replace(tmp, path)
-    return path
+    try:
+        return write_figure(fig, path, dpi=80)
+    finally:
+        plt.close(fig)

@@ -25,7 +25,10 @@ def add_parsers(sub) -> None:
                    help="design file, a `pamkin optimize` run folder, 'thesis', 'split_gluteal' or 'v2_seed' (default: the robot's design "
                         "robot/data/thesis_design.yaml)")
     s.add_argument("--json", action="store_true", help="print one JSON object (pams, summary, criteria) instead of the scorecard (default: the scorecard)")
-    s.add_argument("--out", help="folder for audit.json, scorecard.txt, criteria.png and view.html (default: write nothing)")
+    s.add_argument("--out", help="folder for audit.json, scorecard.txt, criteria.png and view.html, written whole or "
+                                 "not at all; refused if it holds files unless --force (default: write nothing)")
+    s.add_argument("--force", action="store_true",
+                   help="replace an existing --out folder whole (default: refuse)")
     s.add_argument("--quick", action="store_true",
                    help="fewer samples (500 random poses, 150 of them for bone/PAM geometry, every 3rd gait frame, "
                         "4 mm segment steps, 21-point sweeps); default: 2000 poses, 1000 for geometry, every frame, "
@@ -51,7 +54,7 @@ def cmd_audit(args: argparse.Namespace) -> int:
     from pamkin.audit.measure import AuditOptions, audit_design, load_limits  # noqa: PLC0415
     from pamkin.audit.scorecard import plot_criteria, scorecard_text  # noqa: PLC0415
     from pamkin.errors import ConfigurationError  # noqa: PLC0415
-    from pamkin.human.urdf import atomic_write  # noqa: PLC0415
+    from pamkin.outputs import check_output_folder, output_folder, write_file  # noqa: PLC0415
     from pamkin.viz.audit_page import audit_view  # noqa: PLC0415
 
     if args.random is not None and args.random < 1:
@@ -62,6 +65,8 @@ def cmd_audit(args: argparse.Namespace) -> int:
         kw["n_random"] = args.random
     opt = AuditOptions.quick(**kw) if args.quick else AuditOptions(**kw)
     limits = load_limits(args.limits)
+    if args.out:
+        check_output_folder(args.out, args.force)    # before the audit's minutes of work
 
     def progress(msg: str) -> None:
         if not args.json:
@@ -72,15 +77,18 @@ def cmd_audit(args: argparse.Namespace) -> int:
     written = []
     if args.out:
         out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        atomic_write(out / "audit.json", json.dumps(res.to_dict(), indent=1, default=float, allow_nan=False))
-        atomic_write(out / "scorecard.txt", text)
-        written += [out / "audit.json", out / "scorecard.txt", plot_criteria(res, out / "criteria.png"),
-                    audit_view(res, out / "view.html", args.geometry)]
-        if args.screenshot:
-            from pamkin.viz.meshcat_view import screenshot  # noqa: PLC0415
+        with output_folder(out, args.force) as tmp:        # the audit folder appears complete or not at all
+            write_file(tmp / "audit.json", json.dumps(res.to_dict(), indent=1, default=float, allow_nan=False))
+            write_file(tmp / "scorecard.txt", text)
+            plot_criteria(res, tmp / "criteria.png")
+            audit_view(res, tmp / "view.html", args.geometry)
+            names = ["audit.json", "scorecard.txt", "criteria.png", "view.html"]
+            if args.screenshot:
+                from pamkin.viz.meshcat_view import screenshot  # noqa: PLC0415
 
-            written.append(screenshot(out / "view.html", out / "view.png"))
+                screenshot(tmp / "view.html", tmp / "view.png")
+                names.append("view.png")
+        written += [out / n for n in names]
     if args.json:
         d = res.to_dict()
         d["written"] = [str(w) for w in written]

@@ -29,7 +29,8 @@ def add_parsers(sub) -> None:
     s.add_argument("--grf", default=str(DEFAULT_GRF),
                    help="ground reaction forces .mot for the gait phases ('none': no phases; air per window; "
                         "default: the shared subject01 trial)")
-    s.add_argument("--p-max", type=float, default=620.0, help="pressure limit [kPa] (default 620)")
+    s.add_argument("--p-max", type=float, default=None,
+                   help="pressure limit [kPa], at most 800 (default: the design's operating pressure, pressure_Pa)")
     s.add_argument("--tolerance", type=float, default=5.0,
                    help="feasible frame: every residual below this %% of its coordinate's peak (default 5)")
     s.add_argument("--solver", default="proxqp", help="qpsolvers backend (default proxqp; daqp, osqp)")
@@ -41,11 +42,15 @@ def add_parsers(sub) -> None:
 def cmd_gait(args: argparse.Namespace) -> int:
     from pamkin.errors import ParameterError  # noqa: PLC0415
     from pamkin.gait.plan import gait_plan, write_outputs  # noqa: PLC0415
+    from pamkin.robot.design import load_design  # noqa: PLC0415
 
     if not 0 < args.tolerance < 100:
         raise ParameterError(f"--tolerance must be a percentage in (0, 100), got {args.tolerance}")
-    if not args.p_max > 0:
-        raise ParameterError(f"--p-max must be a positive pressure [kPa], got {args.p_max}")
+    if args.p_max is None:                  # the design's own operating pressure
+        design = args.design if args.design not in (None, "robot") else None
+        args.p_max = (load_design(design) if design else load_design()).pressure_Pa / 1e3
+    if not 0 < args.p_max <= 800:
+        raise ParameterError(f"--p-max must be a pressure in (0, 800] kPa, got {args.p_max}")
     grf = None if str(args.grf).lower() == "none" else args.grf
     plan = gait_plan(args.design, ik=args.ik, id=args.id, grf=grf, p_max=args.p_max * 1e3,
                      tolerance=args.tolerance / 100, solver=args.solver)

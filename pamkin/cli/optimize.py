@@ -75,12 +75,17 @@ def add_parsers(sub) -> None:
                     "finished per-actuator solve is stored in the run folder as it completes, so --resume RUN "
                     "continues a killed run; --scheduler sends the solves to a Dask cluster.")
     s.add_argument("config", nargs="?", metavar="CONFIG",
-                   help="TOML run description; every key optional, documented with its default in "
-                        "optimize/config.py (pamkin.optimize.config) (default: all defaults)")
+                   help="TOML run description nested by stage ([first_fit], [bone_rounds], [mount], ...); every key "
+                        "optional, defined with its default and range in pamkin.optimize.config (the documentation's "
+                        "configuration reference; examples/optimize_v2.toml spells out every key) (default: all "
+                        "defaults)")
     s.add_argument("--out", metavar="DIR", help="run folder (default: runs/<date-time> in the current folder)")
     s.add_argument("--apply", metavar="FILE",
                    help="also write the resulting design to FILE (YAML) and its URDF beside it (FILE with .urdf); "
                         "only when every actuator is feasible; use it with --design FILE (default: not written)")
+    s.add_argument("--force", action="store_true",
+                   help="replace an existing --out folder whole, removed before the run starts (default: a folder "
+                        "holding files is refused)")
     s.add_argument("--resume", metavar="RUN",
                    help="continue the killed run in folder RUN with its own config: finished actuator solves are "
                         "read back from RUN/tasks, the rest solved (CONFIG and the overriding options are not "
@@ -149,7 +154,7 @@ def cmd_optimize(args: argparse.Namespace) -> int:
         executor = make_executor(cfg.workers, args.scheduler)
         try:
             summary = run(cfg, out, apply=args.apply, stream=stream, on_design=audit.start if audit else None,
-                          executor=executor, resume=bool(args.resume))
+                          executor=executor, resume=bool(args.resume), force=args.force)
         finally:
             executor.close()
     except InfeasibleError as e:
@@ -240,7 +245,7 @@ def audit_side_by_side(out: Path, stream, audit: BackgroundAudit | None = None) 
 
     from pamkin.audit.scorecard import scorecard_text, side_by_side  # noqa: PLC0415
     from pamkin.errors import PamkinError  # noqa: PLC0415
-    from pamkin.human.urdf import atomic_write  # noqa: PLC0415
+    from pamkin.outputs import write_file  # noqa: PLC0415
 
     print("auditing the result and the thesis design (pamkin audit --quick) ...", file=stream, flush=True)
     try:
@@ -250,9 +255,9 @@ def audit_side_by_side(out: Path, stream, audit: BackgroundAudit | None = None) 
         if audit is not None:
             audit.close()
         return f"\nAudit skipped ({e}); run pamkin audit {out} with --geometry/--ik where that data is.\n"
-    atomic_write(out / "audit.json", json.dumps(res.to_dict(), indent=1, default=float, allow_nan=False))
-    atomic_write(out / "audit_thesis.json", json.dumps(thesis.to_dict(), indent=1, default=float, allow_nan=False))
-    atomic_write(out / "scorecard.txt", scorecard_text(res))
+    write_file(out / "audit.json", json.dumps(res.to_dict(), indent=1, default=float, allow_nan=False))
+    write_file(out / "audit_thesis.json", json.dumps(thesis.to_dict(), indent=1, default=float, allow_nan=False))
+    write_file(out / "scorecard.txt", scorecard_text(res))
     lim = res.summary.get("gait_limiting_coordinates") or {}
     gait_line = ("Gait frames limited by (fraction within the tolerance, this run): "
                  + ", ".join(f"{c} {100 * f:.0f} %" for c, f in lim.items()) + "\n") if lim else ""
@@ -294,7 +299,7 @@ def thesis_quick_audit():
 
     from pamkin._resources import cache_dir  # noqa: PLC0415
     from pamkin.audit.measure import AuditOptions, audit_design  # noqa: PLC0415
-    from pamkin.human.urdf import atomic_write  # noqa: PLC0415
+    from pamkin.outputs import write_file  # noqa: PLC0415
 
     options = AuditOptions.quick()
     path = cache_dir() / "audit" / f"thesis_quick_{_audit_inputs_key(options)}.pickle"
@@ -306,7 +311,7 @@ def thesis_quick_audit():
             pass
     res = audit_design("thesis", options=options)
     try:
-        atomic_write(path, pickle.dumps(res))
+        write_file(path, pickle.dumps(res))
     except OSError:       # a read-only cache folder: the result stands
         pass
     return res

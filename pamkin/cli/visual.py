@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from pamkin.errors import ConfigurationError
+from pamkin.outputs import check_output_file, check_output_folder, output_folder
 
 
 def add_parsers(sub) -> None:
@@ -56,7 +57,11 @@ def add_parsers(sub) -> None:
                     "of the design, other coordinates 0. Writes PNG files and index.html into --out.")
     s.add_argument("--design", help="design file, 'thesis' (the thesis design), 'split_gluteal' or 'v2_seed' (default: the robot's design "
                                     "robot/data/thesis_design.yaml)")
-    s.add_argument("--out", default="pamkin-report", metavar="DIR", help="output folder (default: pamkin-report)")
+    s.add_argument("--out", default="pamkin-report", metavar="DIR",
+                   help="output folder, written whole or not at all; refused if it holds files unless --force "
+                        "(default: pamkin-report)")
+    s.add_argument("--force", action="store_true",
+                   help="replace an existing --out folder whole (no stale files of the old report) (default: refuse)")
     s.add_argument("--side", choices=("r", "l"), default="r", help="leg side (default: r)")
     s.add_argument("-n", type=int, default=25, help="grid points per coordinate of the surfaces (default 25)")
     s.add_argument("--n1", type=int, default=101, help="samples of the 1-D curves (default 101)")
@@ -92,6 +97,9 @@ def cmd_view(args: argparse.Namespace) -> int:
         width, height = (int(x) for x in args.size.lower().split("x"))
     except ValueError:
         raise ConfigurationError(f"--size {args.size!r}: expected WIDTHxHEIGHT, e.g. 1000x700") from None
+    check_output_file(args.html)            # before any work: not a folder, its folder not a file
+    if args.screenshot:
+        check_output_file(args.screenshot)
     human = pamkin.gait2392()
     robot = _robot(args.design)
     meshes = None
@@ -130,7 +138,9 @@ def cmd_report(args: argparse.Namespace) -> int:
         bar = "#" * int(30 * done / total)
         print(f"[{bar:30s}] {done:2d}/{total}  {key} {name}", file=sys.stderr, flush=True)
 
-    rep = torque_report(_robot(args.design), pamkin.gait2392(), args.out, side=args.side, n=args.n, n1=args.n1,
-                        pams=pams, partner=args.partner, progress=None if args.quiet else progress)
-    print(f"wrote {len(rep.files)} figures and {rep.index}")
+    check_output_folder(args.out, args.force)        # before any work
+    with output_folder(args.out, args.force) as tmp:   # the report appears complete or not at all
+        rep = torque_report(_robot(args.design), pamkin.gait2392(), tmp, side=args.side, n=args.n, n1=args.n1,
+                            pams=pams, partner=args.partner, progress=None if args.quiet else progress)
+    print(f"wrote {len(rep.files)} figures and {Path(args.out) / Path(rep.index).name}")
     return 0

@@ -62,7 +62,7 @@ import numpy as np
 
 from pamkin._resources import SHARED_DIR
 from pamkin.errors import ParameterError, SolverError, StorageFileError
-from pamkin.human.urdf import atomic_write
+from pamkin.outputs import write_file
 from pamkin.opensim.storage import Storage, read_storage
 from pamkin.robot import festo
 from pamkin.robot.biped import PamRobot, design_robot
@@ -847,7 +847,7 @@ def plot_pressures(plan: GaitPlan, path: str | Path, title: str | None = None) -
     buf.seek(0)
     small = io.BytesIO()
     Image.open(buf).convert("RGB").quantize(colors=64).save(small, format="png", optimize=True)  # ~4x smaller
-    atomic_write(Path(path), small.getvalue())
+    write_file(Path(path), small.getvalue())
     return Path(path)
 
 
@@ -862,18 +862,18 @@ def write_outputs(plan: GaitPlan, out: str | Path) -> list[Path]:
     t = plan.trial.times
     files = []
     p = out / "gait.json"
-    atomic_write(p, json.dumps(plan.to_dict(), indent=2) + "\n")
+    write_file(p, json.dumps(plan.to_dict(), indent=2) + "\n")
     files.append(p)
     head = "time_s," + ",".join(f"{n}_kPa" for n in plan.pam_names)
     rows = [f"{ti:.6f}," + ",".join(f"{v:.3f}" for v in row) for ti, row in zip(t, plan.pressures / 1e3)]
     p = out / "pressures.csv"
-    atomic_write(p, "\n".join([head, *rows]) + "\n")
+    write_file(p, "\n".join([head, *rows]) + "\n")
     files.append(p)
     head = "time_s," + ",".join(f"{c}_id_Nm,{c}_robot_Nm" for c in plan.trial.coordinates)
     both = np.stack([plan.trial.moments, plan.robot_moments], axis=2).reshape(len(t), -1)
     rows = [f"{ti:.6f}," + ",".join(f"{v:.4f}" for v in row) for ti, row in zip(t, both)]
     p = out / "moments.csv"
-    atomic_write(p, "\n".join([head, *rows]) + "\n")
+    write_file(p, "\n".join([head, *rows]) + "\n")
     files.append(p)
     files.append(plot_pressures(plan, out / "pressures.png"))
     return files

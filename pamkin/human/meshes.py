@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from pamkin.errors import DataFileError
+from pamkin.outputs import write_figure
 from pamkin.opensim.vtp import MeshWarning, read_vtp
 
 __all__ = ["MAX_FACES", "MESH_SUBDIR", "find_geometry_dir", "mesh_sources", "render_urdf", "stl_bytes",
@@ -219,11 +220,10 @@ def render_urdf(urdf_path: str | os.PathLike, png: str | os.PathLike, size: tupl
     fig.suptitle(title or f"{Path(urdf_path).name}: bone meshes"
                  + (f", {len(routes)} PAM routes (through their route points)" if routes else ""), fontsize=11)
     fig.tight_layout()
-    png = Path(png)
-    png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png, facecolor="white")
-    plt.close(fig)
-    return png
+    try:
+        return write_figure(fig, png, facecolor="white")
+    finally:
+        plt.close(fig)
 
 
 def visual_specs(model, available: Iterable[str]) -> dict[str, list[dict]]:

@@ -3,14 +3,13 @@
 The importer (:mod:`pamkin.opensim.model_file`) reads the ``.osim``; :func:`model_data` turns it
 into the plain numbers the Xacro macros of ``robot/xacro/osim_joint.xacro`` need;
 :func:`render_urdf` runs the ``xacro`` Python package on ``robot/osim_model.urdf.xacro``.
-Every file is written atomically (temporary file + ``os.replace``).
+Every file is written through :mod:`pamkin.outputs` (atomically).
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -28,6 +27,7 @@ from pamkin.human.meshes import (
     visual_specs,
 )
 from pamkin.opensim.functions import LinearFunction
+from pamkin.outputs import write_file
 from pamkin.opensim.model_file import (
     Coordinate,
     Joint,
@@ -145,25 +145,9 @@ def load_model_data(path: str | os.PathLike) -> OsimModel:
         raise DataFileError(str(path), f"not a pamkin model data file: {type(e).__name__}: {e}") from None
 
 
-def atomic_write(path: Path, text: str | bytes) -> None:
-    """Write ``text`` to ``path`` atomically (temporary file in the same folder + rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    data = text.encode() if isinstance(text, str) else text
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def write_model_data(model: OsimModel, path: Path, meshes: Iterable[str] = ()) -> Path:
     """Write :func:`model_data` of ``model`` to a YAML file (atomically)."""
-    atomic_write(Path(path), model_data_text(model, meshes))
+    write_file(Path(path), model_data_text(model, meshes))
     return Path(path)
 
 
@@ -218,12 +202,12 @@ def build(model: OsimModel, data_path: Path, urdf_path: Path, name: str,
     sources = mesh_sources(model, geometry_dir)
     meshes = {stl_name(n): bone_stl(src) for n, src in sources.items()}
     data_text = model_data_text(model, sources)
-    atomic_write(Path(data_path), data_text)
+    write_file(Path(data_path), data_text)
     urdf = render_urdf(Path(data_path), name)
     if write_meshes:
         for rel, data in meshes.items():
-            atomic_write(Path(urdf_path).parent / rel, data)
-    atomic_write(Path(urdf_path), urdf)
+            write_file(Path(urdf_path).parent / rel, data)
+    write_file(Path(urdf_path), urdf)
     return data_text, urdf, meshes
 
 
@@ -268,7 +252,7 @@ def build_gait2392(osim_path: str | os.PathLike, check: bool = False,
     old_meshes = set(MESH_DIR.glob("*.stl")) if MESH_DIR.is_dir() else set()
     if not check:
         _, _, meshes = build(model, GAIT2392_DATA, GAIT2392_URDF, "gait2392", geometry)
-        atomic_write(ROBOT_URDF, render_robot_urdf())
+        write_file(ROBOT_URDF, render_robot_urdf())
         new = {GAIT2392_URDF.parent / rel for rel in meshes}
         for f in old_meshes - new:
             f.unlink()

@@ -43,6 +43,8 @@ any straight segment of its route holds (at k = 1) fits on one with k = 2, at tw
 from __future__ import annotations
 
 import copy
+import difflib
+import functools
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,7 +53,8 @@ import numpy as np
 import yaml
 
 from pamkin.errors import DataFileError
-from pamkin.human.urdf import ROBOT_DIR, atomic_write
+from pamkin.human.urdf import GAIT2392_DATA, ROBOT_DIR, load_model_data
+from pamkin.outputs import write_file
 from pamkin.opensim.functions import Constant, MultiplierFunction
 from pamkin.opensim.model_file import (
     AnyPathPoint,
@@ -64,7 +67,7 @@ from pamkin.opensim.model_file import (
 from pamkin.robot import festo
 from pamkin.robot.pam_body import PAM_AT
 from pamkin.robot.rollers import Roller, roller_from_dict
-from pamkin.yamlio import safe_load
+from pamkin.yamlio import strict_load
 
 #: The thesis robot's 27 PAMs as designed by hand (sized by the thesis algorithm): the baseline.
 THESIS_DESIGN = ROBOT_DIR / "data" / "thesis_design.yaml"
@@ -244,90 +247,173 @@ def _fail(path: str, msg: str) -> DataFileError:
     return DataFileError(path, msg)
 
 
+#: Fields of a PAM entry: required, then optional.
+_OPTIONAL = ("secondary_coordinates", "n_parallel", "transmission", "pam_at", "pam_on", "rollers", "notes")
+#: Top-level fields of a design file.
+_TOP = ("name", "description", "rom", "force_model", "pressure_Pa", "fitting_length_m", "pams", "notes")
+#: Physical bounds of a design's numbers (SI): a value outside is a typo or a unit mix-up, refused.
+BOUNDS = {"resting_length_m": (0.01, 2.0), "tendon_length_m": (-2.0, 2.0), "pressure_Pa": (1e5, 8e5),
+          "fitting_length_m": (0.0, 0.1), "point_distance_m": 1.0}
+
+
+def _unknown(keys, known, path: str, where: str) -> None:
+    """Refuse keys outside ``known``, naming the nearest valid one."""
+    for k in keys:
+        if k not in known:
+            near = difflib.get_close_matches(str(k), known, n=1)
+            raise _fail(path, f"{where}unknown field {k!r}" + (f" (did you mean {near[0]!r}?)" if near else
+                                                              f"; fields: {sorted(known)}"))
+
+
+def _int(d: dict, key: str, path: str, where: str, default=None, allowed=None) -> int:
+    v = d.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise _fail(path, f"{where}{key} must be an integer, is {v!r}")
+    if allowed is not None and v not in allowed:
+        raise _fail(path, f"{where}{key} must be one of {tuple(allowed)}, is {v!r}")
+    return v
+
+
+def _number(d: dict, key: str, path: str, where: str, default=None) -> float:
+    v = d.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v):
+        raise _fail(path, f"{where}{key} must be a finite number, is {v!r}")
+    lo, hi = BOUNDS.get(key, (-np.inf, np.inf))
+    if not lo <= v <= hi or (key != "tendon_length_m" and v <= 0 and lo == 0.0):
+        raise _fail(path, f"{where}{key} must lie in ({lo:g}, {hi:g}], is {v!r}" if lo == 0.0 else
+                    f"{where}{key} must lie in [{lo:g}, {hi:g}], is {v!r}")
+    return float(v)
+
+
+def _names(d: dict, key: str, path: str, where: str, known=None, empty: bool = True) -> tuple[str, ...]:
+    v = d.get(key, [])
+    if not isinstance(v, list) or not all(isinstance(x, str) and x for x in v) or (not empty and not v):
+        raise _fail(path, f"{where}{key} must be a {'' if empty else 'non-empty '}list of names, is {v!r}")
+    bad = [x for x in v if known is not None and x not in known]
+    if bad:
+        raise _fail(path, f"{where}{key}: unknown name(s) {bad}")
+    return tuple(v)
+
+
+@functools.lru_cache(maxsize=1)
+def _gait2392_muscles() -> frozenset[str]:
+    """The Gait2392 muscle names a PAM's ``human_muscles`` may name (read once per process: 0.1 s)."""
+    return frozenset(m.name for m in load_model_data(GAIT2392_DATA).muscles)
+
+
+def _points(d: dict, path: str, where: str, bodies) -> tuple:
+    raw = d["points"]
+    if not isinstance(raw, list) or not all(isinstance(p, dict) for p in raw):
+        raise _fail(path, f"{where}points must be a list of mappings (name, body, location), is {raw!r:.80}")
+    try:
+        points = tuple(point_from_dict(p) for p in raw)
+    except (KeyError, TypeError, ValueError) as e:
+        raise _fail(path, f"{where}bad route point: {type(e).__name__}: {e}") from None
+    if len(points) < 2:
+        raise _fail(path, f"{where}a route needs at least 2 points")
+    names = [pt.name for pt in points]
+    if len(set(names)) != len(names) or not all(isinstance(n, str) and n for n in names):
+        raise _fail(path, f"{where}route point names must be distinct, non-empty names, are {names}")
+    for pt in points:
+        if bodies is not None and pt.body not in bodies:
+            raise _fail(path, f"{where}route point {pt.name!r} is on unknown body {pt.body!r}; bodies: {bodies}")
+        if isinstance(pt, PathPoint):
+            if not np.all(np.isfinite(pt.location)):
+                raise _fail(path, f"{where}route point {pt.name!r} has a non-finite location")
+            if np.linalg.norm(pt.location) > BOUNDS["point_distance_m"]:
+                raise _fail(path, f"{where}route point {pt.name!r} lies {np.linalg.norm(pt.location):.3g} m from "
+                                  f"its body's origin (at most {BOUNDS['point_distance_m']:g} m: a unit mix-up?)")
+    return points
+
+
+def _pam_from_dict(d, k: int, path: str, bodies, coordinates, muscles, seen: set) -> Pam:
+    """One PAM entry, validated (errors name the file, the PAM and the field)."""
+    where = f"pams[{k}]" + (f" (id {d.get('id')!r}, {d.get('name')!r})" if isinstance(d, dict) else "") + ": "
+    if not isinstance(d, dict):
+        raise _fail(path, f"{where}must be a mapping")
+    missing = [f for f in _REQUIRED if f not in d]
+    if missing:
+        raise _fail(path, f"{where}missing field(s) {missing}")
+    _unknown(d, _REQUIRED + _OPTIONAL, path, where)
+    pid = _int(d, "id", path, where)
+    if pid < 1 or pid in seen:
+        raise _fail(path, f"{where}id must be a distinct integer >= 1")
+    seen.add(pid)
+    if not isinstance(d["name"], str) or not d["name"]:
+        raise _fail(path, f"{where}name must be a non-empty string")
+    diameter = _int(d, "diameter_mm", path, where, allowed=DIAMETERS_MM)
+    npar = _int(d, "n_parallel", path, where, default=1, allowed=(1, 2, 3))
+    ratio = _int(d, "transmission", path, where, default=1, allowed=TRANSMISSIONS)
+    rest = _number(d, "resting_length_m", path, where)
+    tendon = _number(d, "tendon_length_m", path, where)
+    human = _names(d, "human_muscles", path, where, muscles, empty=False)
+    if not isinstance(d["primary_coordinate"], str):
+        raise _fail(path, f"{where}primary_coordinate must be a coordinate name")
+    coords = (d["primary_coordinate"], *_names(d, "secondary_coordinates", path, where))
+    bad = [c for c in coords if coordinates is not None and c not in coordinates]
+    if bad:
+        raise _fail(path, f"{where}unknown coordinate(s) {bad}")
+    points = _points(d, path, where, bodies)
+    pam_at, pam_on, rollers = _mount_fields(d, points, path, where, bodies)
+    if not isinstance(d.get("notes", ""), str):
+        raise _fail(path, f"{where}notes must be text")
+    return Pam(pid, d["name"], human, coords[0], coords[1:], diameter, npar, rest, tendon, points,
+               d.get("notes", ""), ratio, pam_at, pam_on, rollers)
+
+
+def _mount_fields(d: dict, points, path: str, where: str, bodies):
+    """``pam_at``, ``pam_on`` and ``rollers`` of a PAM entry, validated against its route."""
+    pam_at = d.get("pam_at")
+    if pam_at is not None and pam_at not in PAM_AT:
+        raise _fail(path, f"{where}pam_at must be one of {PAM_AT} (the end of its mount segment the PAM "
+                          f"is anchored at), is {pam_at!r}")
+    pam_on = d.get("pam_on")
+    segments = [f"{a.name}->{b.name}" for a, b in zip(points[:-1], points[1:])]
+    if pam_on is not None and pam_on not in segments:
+        raise _fail(path, f"{where}pam_on must name a segment of its route {segments} (the segment the "
+                          f"PAM body sits on), is {pam_on!r}")
+    raw_rollers = d.get("rollers") or []
+    if not isinstance(raw_rollers, list) or not all(isinstance(r, dict) for r in raw_rollers):
+        raise _fail(path, f"{where}rollers must be a list of mappings")
+    try:
+        rollers = tuple(roller_from_dict(r, segments, bodies) for r in raw_rollers)
+    except (ValueError, TypeError, KeyError) as e:
+        raise _fail(path, f"{where}{e}") from None
+    twice = sorted({r.segment for r in rollers if sum(x.segment == r.segment for x in rollers) > 1})
+    if twice:
+        raise _fail(path, f"{where}at most one roller per segment; {twice} have more")
+    if pam_on is not None and pam_on in {r.segment for r in rollers}:
+        raise _fail(path, f"{where}pam_on {pam_on!r} has a roller: a PAM body sits on a straight segment")
+    return pam_at, pam_on, rollers
+
+
 def design_from_dict(data: dict, path: str = "<design>", bodies: list[str] | None = None,
-                     coordinates: list[str] | None = None) -> Design:
-    """Validate and build a :class:`Design` (errors name the file, PAM and field)."""
+                     coordinates: list[str] | None = None, muscles: frozenset[str] | None = None) -> Design:
+    """Validate and build a :class:`Design` (errors name the file, PAM and field).
+
+    Every field's type and physical range is checked (:data:`BOUNDS`), unknown fields are refused with the
+    nearest valid name, ``human_muscles`` must be Gait2392 muscles (``muscles``; default: Gait2392's), route
+    points must lie on ``bodies`` and coordinates be ``coordinates`` where those are given.
+    """
     if not isinstance(data, dict) or "pams" not in data:
         raise _fail(path, "not a design file: needs a top-level 'pams' list")
-    pams = []
-    seen = set()
-    for k, d in enumerate(data["pams"]):
-        where = f"pams[{k}]" + (f" (id {d.get('id')}, {d.get('name')!r})" if isinstance(d, dict) else "")
-        if not isinstance(d, dict):
-            raise _fail(path, f"{where}: must be a mapping")
-        missing = [f for f in _REQUIRED if f not in d]
-        if missing:
-            raise _fail(path, f"{where}: missing field(s) {missing}")
-        if d["id"] in seen:
-            raise _fail(path, f"{where}: duplicate id")
-        seen.add(d["id"])
-        if d["diameter_mm"] not in DIAMETERS_MM:
-            raise _fail(path, f"{where}: diameter_mm {d['diameter_mm']!r} is not a Festo DMSP size {DIAMETERS_MM}")
-        try:
-            rest = float(d["resting_length_m"])
-            tendon = float(d["tendon_length_m"])
-            npar = int(d.get("n_parallel", 1))
-            ratio = d.get("transmission", 1)
-        except (TypeError, ValueError) as e:
-            raise _fail(path, f"{where}: {e}") from None
-        if not np.isfinite(rest) or rest <= 0:
-            raise _fail(path, f"{where}: resting_length_m must be a positive length, is {rest}")
-        if not np.isfinite(tendon):
-            raise _fail(path, f"{where}: tendon_length_m must be finite")
-        if npar not in (1, 2, 3):
-            raise _fail(path, f"{where}: n_parallel must be 1, 2 or 3")
-        if isinstance(ratio, bool) or ratio not in TRANSMISSIONS:
-            raise _fail(path, f"{where}: transmission must be one of {TRANSMISSIONS} (cable legs at the PAM's "
-                              f"free end), is {ratio!r}")
-        pam_at = d.get("pam_at")
-        if pam_at is not None and pam_at not in PAM_AT:
-            raise _fail(path, f"{where}: pam_at must be one of {PAM_AT} (the end of its mount segment the PAM "
-                              f"is anchored at), is {pam_at!r}")
-        try:
-            points = tuple(point_from_dict(p) for p in d["points"])
-        except (KeyError, TypeError, ValueError) as e:
-            raise _fail(path, f"{where}: bad route point: {type(e).__name__}: {e}") from None
-        if len(points) < 2:
-            raise _fail(path, f"{where}: a route needs at least 2 points")
-        pam_on = d.get("pam_on")
-        segments = [f"{a.name}->{b.name}" for a, b in zip(points[:-1], points[1:])]
-        if pam_on is not None and pam_on not in segments:
-            raise _fail(path, f"{where}: pam_on must name a segment of its route {segments} (the segment the "
-                              f"PAM body sits on), is {pam_on!r}")
-        raw_rollers = d.get("rollers") or []
-        if not isinstance(raw_rollers, list):
-            raise _fail(path, f"{where}: rollers must be a list of mappings")
-        try:
-            rollers = tuple(roller_from_dict(r, segments, bodies) for r in raw_rollers)
-        except ValueError as e:
-            raise _fail(path, f"{where}: {e}") from None
-        twice = sorted({r.segment for r in rollers if sum(x.segment == r.segment for x in rollers) > 1})
-        if twice:
-            raise _fail(path, f"{where}: at most one roller per segment; {twice} have more")
-        if pam_on is not None and pam_on in {r.segment for r in rollers}:
-            raise _fail(path, f"{where}: pam_on {pam_on!r} has a roller: a PAM body sits on a straight segment")
-        for pt in points:
-            if bodies is not None and pt.body not in bodies:
-                raise _fail(path, f"{where}: route point {pt.name!r} is on unknown body {pt.body!r}; "
-                                  f"bodies: {bodies}")
-            if isinstance(pt, PathPoint) and not np.all(np.isfinite(pt.location)):
-                raise _fail(path, f"{where}: route point {pt.name!r} has a non-finite location")
-        coords = [d["primary_coordinate"], *d.get("secondary_coordinates", [])]
-        if coordinates is not None:
-            bad = [c for c in coords if c not in coordinates]
-            if bad:
-                raise _fail(path, f"{where}: unknown coordinate(s) {bad}")
-        pams.append(Pam(int(d["id"]), str(d["name"]), tuple(d["human_muscles"]), d["primary_coordinate"],
-                        tuple(d.get("secondary_coordinates", [])), int(d["diameter_mm"]), npar, rest,
-                        tendon, points, str(d.get("notes", "")), int(ratio), pam_at, pam_on, rollers))
-    known = {"name", "description", "rom", "force_model", "pressure_Pa", "fitting_length_m", "pams"}
-    try:
-        return Design(str(data.get("name", Path(path).stem)), tuple(pams), float(data.get("pressure_Pa", 620e3)),
-                      str(data.get("force_model", "v3")), float(data.get("fitting_length_m", 0.0125)),
-                      str(data.get("rom", "robot_thesis")), str(data.get("description", "")), path,
-                      {k: v for k, v in data.items() if k not in known})
-    except (TypeError, ValueError) as e:
-        raise _fail(path, f"bad top-level field: {e}") from None
+    _unknown(data, _TOP, path, "")
+    if not isinstance(data["pams"], list) or not data["pams"]:
+        raise _fail(path, f"pams must be a non-empty list of PAMs, is {data['pams']!r:.80}")
+    muscles = _gait2392_muscles() if muscles is None else muscles
+    seen: set[int] = set()
+    pams = tuple(_pam_from_dict(d, k, path, bodies, coordinates, muscles, seen) for k, d in enumerate(data["pams"]))
+    for key in ("name", "description", "rom", "notes"):
+        if not isinstance(data.get(key, ""), str):
+            raise _fail(path, f"{key} must be text, is {data[key]!r:.80}")
+    force_model = data.get("force_model", "v3")
+    if force_model not in festo.MODELS:
+        raise _fail(path, f"force_model must be one of {sorted(festo.MODELS)}, is {force_model!r}")
+    pressure = _number(data, "pressure_Pa", path, "", 620e3)
+    fitting = _number(data, "fitting_length_m", path, "", 0.0125)
+    extra = {k: v for k, v in data.items() if k == "notes"}
+    return Design(data.get("name", Path(path).stem), pams, pressure, force_model, fitting,
+                  data.get("rom", "robot_thesis"), data.get("description", ""), path, extra)
 
 
 def resolve_design_path(design: str | os.PathLike | None = None) -> Path:
@@ -370,18 +456,18 @@ def load_design(path: str | os.PathLike = ROBOT_DESIGN, bodies: list[str] | None
     """
     path = resolve_design_path(path)
     try:
-        data = safe_load(path.read_text())
+        raw = path.read_bytes()
     except FileNotFoundError:
         raise _fail(str(path), "file not found") from None
-    except yaml.YAMLError as e:
-        raise _fail(str(path), f"not valid YAML: {e}") from None
-    return design_from_dict(data, str(path), bodies, coordinates)
+    except IsADirectoryError:
+        raise _fail(str(path), "is a folder without design.yaml") from None
+    return design_from_dict(strict_load(raw, str(path)), str(path), bodies, coordinates)
 
 
 def save_design(design: Design, path: str | os.PathLike, header: str = "") -> Path:
     """Write a design file atomically (nothing is changed if writing fails)."""
     text = header + yaml.safe_dump(design.to_dict(), sort_keys=False, width=110)
-    atomic_write(Path(path), text)
+    write_file(Path(path), text)
     return Path(path)
 
 

@@ -54,7 +54,7 @@ import numpy as np
 
 from pamkin.errors import DataFileError, PamkinError
 from pamkin.human.rom import RangeOfMotion
-from pamkin.human.urdf import atomic_write
+from pamkin.outputs import write_file
 from pamkin.opensim.functions import (
     Constant,
     LinearFunction,
@@ -125,7 +125,7 @@ def design_to_osim(design: Design, skeleton: OsimModel, path: str | os.PathLike,
     if blocker is not None and not blocker.is_dir():
         raise OsimExportError(f"cannot write {path}: {blocker} is not a folder")
     try:
-        atomic_write(path, text)
+        write_file(path, text)
     except OSError as e:
         where = f" ({e.filename})" if e.filename and str(e.filename) != str(path) else ""
         raise OsimExportError(f"cannot write {path}: {e.strerror or e}{where}") from None

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from pamkin.human.bones import BoneSet
-from pamkin.human.urdf import atomic_write
+from pamkin.outputs import write_file
 from pamkin.robot.biped import PamRobot, robot_skeleton
 from pamkin.robot.festo import outer_diameter
 from pamkin.robot.pam_body import pam_capsules, route_positions
@@ -125,5 +125,5 @@ def audit_view(res, path: str | os.PathLike, geometry_dir: str | None = None) ->
             vis[node].set_transform(T)
     _frame_camera(vis, np.vstack(allpts))
     path = Path(path)
-    atomic_write(path, vis.static_html())
+    write_file(path, vis.static_html())
     return path

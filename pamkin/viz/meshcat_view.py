@@ -51,6 +51,7 @@ from pamkin.human.rom import load_rom
 from pamkin.robot.biped import placements
 from pamkin.robot.pam_body import body_interval, route_positions
 from pamkin.robot.rollers import roller_world
+from pamkin.outputs import write_file
 
 __all__ = ["ColorScale", "StaticWindow", "View", "build_view", "screenshot", "simple_bone_meshes"]
 
@@ -348,13 +349,8 @@ class View:
         return self.visualizer.static_html()
 
     def save(self, path: str | os.PathLike) -> Path:
-        """Write the page to ``path`` (atomically)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(self.html(), encoding="utf-8")
-        os.replace(tmp, path)
-        return path
+        """Write the page to ``path`` (:func:`pamkin.outputs.write_file`: atomically, or through a pipe)."""
+        return write_file(path, self.html())
 
 
 def sweep_frames(robot, coordinate: str, n: int, base: np.ndarray) -> np.ndarray:

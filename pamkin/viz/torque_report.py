@@ -30,6 +30,7 @@ import numpy as np
 from pamkin.audit.compare import TorqueMatch, torque_match
 from pamkin.errors import ConfigurationError
 from pamkin.human.rom import load_rom
+from pamkin.outputs import write_figure, write_file
 
 __all__ = [
     "CURVE_PX",
@@ -202,9 +203,7 @@ def _symmetric(*arrays: np.ndarray) -> float:
 
 
 def _save(fig, path: Path) -> None:
-    tmp = path.with_name(path.name + ".tmp.png")
-    fig.savefig(tmp, dpi=_DPI)
-    os.replace(tmp, path)
+    write_figure(fig, path, dpi=_DPI)
 
 
 def _surface_figure(path: Path, title: str, prim: str, second: str, X, Y, H, R, dead) -> None:
@@ -334,6 +333,4 @@ Angles in degrees, torques in N·m.</p>
 </table>
 </body></html>
 """
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(page, encoding="utf-8")
-    os.replace(tmp, path)
+    write_file(path, page)
