@@ -18,8 +18,16 @@ MARKER = "<!-- config-reference -->"
 log = logging.getLogger("mkdocs.hooks.pamkin")
 
 
+DESIGN_MARKER = "<!-- design-schema -->"
+
+
 def on_page_markdown(markdown, page, config, files):
-    """Replace the config-reference marker by the generated key reference (other pages unchanged)."""
+    """Replace the config-reference marker by the generated key reference and the design-schema marker by the
+    generated design schema (other pages unchanged)."""
+    if DESIGN_MARKER in markdown:
+        from pamkin.robot.design import design_schema_markdown  # noqa: PLC0415 (at build time only)
+
+        markdown = markdown.replace(DESIGN_MARKER, "\n" + design_schema_markdown() + "\n")
     if MARKER not in markdown:
         return markdown
     try:

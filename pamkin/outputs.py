@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import os
 import shutil
 import stat
@@ -27,7 +28,7 @@ from pathlib import Path
 
 from pamkin.errors import OutputError
 
-__all__ = ["check_output_file", "check_output_folder", "output_folder", "write_figure", "write_file"]
+__all__ = ["check_output_file", "check_output_folder", "output_folder", "strict_json", "write_figure", "write_file"]
 
 
 def _special(path: Path) -> bool:
@@ -148,3 +149,21 @@ def output_folder(path: str | os.PathLike, force: bool = False) -> Iterator[Path
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def _finite(x):
+    if isinstance(x, dict):
+        return {str(k): _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    if hasattr(x, "tolist") and not isinstance(x, (str, bytes)):      # numpy arrays and scalars
+        return _finite(x.tolist())
+    if isinstance(x, float):
+        return x if x == x and x not in (float("inf"), float("-inf")) else None
+    return x
+
+
+def strict_json(obj, indent: int | None = 2) -> str:
+    """``obj`` as strict JSON text: every non-finite number (an undefined error, a failed solve's objective)
+    is ``null``, numpy values are plain numbers — what every JSON reader accepts."""
+    return json.dumps(_finite(obj), indent=indent, allow_nan=False)

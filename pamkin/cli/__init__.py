@@ -8,7 +8,6 @@ Run ``pamkin --help`` for the list and ``pamkin COMMAND --help`` for each comman
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -17,6 +16,7 @@ import numpy as np
 
 from pamkin._resources import DEFAULT_OSIM  # re-exported: pamkin.cli.DEFAULT_OSIM
 from pamkin.errors import PamkinError
+from pamkin.outputs import strict_json
 
 
 def _load(osim: str | None):
@@ -53,7 +53,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         "spanned_pairs": int(len(model.pairs)),
     }
     if args.json:
-        print(json.dumps(info, indent=2))
+        print(strict_json(info))
         return 0
     print(f"{info['model']} ({info['source']})")
     print(f"{len(model.bodies)} bodies: {', '.join(model.bodies)}")

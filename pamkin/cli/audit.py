@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 
 
@@ -53,12 +54,12 @@ def cmd_audit(args: argparse.Namespace) -> int:
 
     from pamkin.audit.measure import AuditOptions, audit_design, load_limits  # noqa: PLC0415
     from pamkin.audit.scorecard import plot_criteria, scorecard_text  # noqa: PLC0415
-    from pamkin.errors import ConfigurationError  # noqa: PLC0415
+    from pamkin.cli.bounds import check_count  # noqa: PLC0415
     from pamkin.outputs import check_output_folder, output_folder, write_file  # noqa: PLC0415
     from pamkin.viz.audit_page import audit_view  # noqa: PLC0415
 
-    if args.random is not None and args.random < 1:
-        raise ConfigurationError(f"--random must be >= 1, got {args.random}")
+    if args.random is not None:
+        check_count("--random", args.random, 1, 100000)
     ik = None if str(args.ik).lower() == "none" else args.ik
     kw = {"seed": args.seed, "gait_ik": ik, "geometry_dir": args.geometry, "gait_plan": not args.no_gait_plan}
     if args.random is not None:
@@ -89,14 +90,25 @@ def cmd_audit(args: argparse.Namespace) -> int:
                 screenshot(tmp / "view.html", tmp / "view.png")
                 names.append("view.png")
         written += [out / n for n in names]
+    code = 0 if res.passed else 1              # 1: a limit failed (also when the reader closes the pipe early)
+    try:
+        _print_result(args, res, text, written)
+    except BrokenPipeError:
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115  (nothing more reaches a closed pipe)
+    return code
+
+
+def _print_result(args, res, text: str, written: list) -> None:
+    from pamkin.outputs import strict_json  # noqa: PLC0415
+
     if args.json:
         d = res.to_dict()
         d["written"] = [str(w) for w in written]
-        print(json.dumps(d, indent=1, default=float, allow_nan=False))
+        print(strict_json(d, indent=1))
     else:
         print(text, end="")
         for w in written:
             print(f"wrote {w}")
         if not res.passed:
             print("next: fix the failed criteria (pamkin optimize, or edit the design) and re-run pamkin audit")
-    return 0 if res.passed else 1
+    sys.stdout.flush()

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
+
+from pamkin.outputs import strict_json
 
 
 def add_parsers(sub) -> None:
@@ -58,7 +59,7 @@ def cmd_gait(args: argparse.Namespace) -> int:
     if args.json:
         d = plan.to_dict()
         d["written"] = [str(f) for f in files]
-        print(json.dumps(d, indent=2))
+        print(strict_json(d))
         return 0
     s = plan.summary()
     print(f"Design {plan.design!r} ({plan.design_path}) over {plan.trial.ik_path}")

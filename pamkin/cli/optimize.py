@@ -115,8 +115,10 @@ def add_parsers(sub) -> None:
 
 def cmd_optimize(args: argparse.Namespace) -> int:
     from pamkin.errors import ConfigurationError  # noqa: PLC0415
-    from pamkin.optimize.config import load_config  # noqa: PLC0415
-    from pamkin.optimize.config import config_from_dict  # noqa: PLC0415
+    from pamkin.optimize.config import (
+        config_from_dict,  # noqa: PLC0415
+        load_config,  # noqa: PLC0415
+    )
     from pamkin.optimize.executor import make_executor  # noqa: PLC0415
     from pamkin.optimize.pipeline import run  # noqa: PLC0415
     from pamkin.optimize.results import InfeasibleError  # noqa: PLC0415

@@ -36,7 +36,7 @@ def add_parsers(sub) -> None:
     s.add_argument("--design", help="design file, 'thesis' (the thesis design), 'split_gluteal' or 'v2_seed' (default: the robot's "
                                     "design robot/data/thesis_design.yaml)")
     s.add_argument("--side", choices=("r", "l"), default="r", help="leg side (default: r)")
-    s.add_argument("-n", type=int, default=41, help="samples of the 1-D sweeps (default: 41)")
+    s.add_argument("-n", type=int, default=41, help="samples of the 1-D sweeps, 2..1001 (default: 41)")
     s.add_argument("--json", action="store_true", help="machine-readable output (default: a table)")
     s.set_defaults(func=cmd_compare)
 
@@ -127,7 +127,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
         finite_or_none,
         summary_line,
     )
+    from pamkin.cli.bounds import check_count  # noqa: PLC0415
 
+    check_count("-n", args.n, 2, 1001)
     robot = _robot(args.design)
     human = pamkin.gait2392()
     rows = compare_design(robot, human, args.side, n=args.n)

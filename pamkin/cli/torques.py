@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
 
@@ -24,7 +23,8 @@ def add_parsers(sub) -> None:
     s.add_argument("--coords", default="hip_flexion,knee_angle",
                    help="comma-separated grid coordinates, side suffix optional "
                         "(default hip_flexion,knee_angle)")
-    s.add_argument("-n", type=int, default=21, help="grid points per coordinate (default 21)")
+    s.add_argument("-n", type=int, default=21, help="grid points per coordinate, 2..201; the grid (n^coordinates "
+                                                  "poses) must fit in memory (default 21)")
     s.add_argument("--activation", type=float, default=1.0, help="activation of every muscle, in [0, 1] (default: 1)")
     s.add_argument("--json", action="store_true", help="machine-readable output (default: tables)")
     s.set_defaults(func=cmd_torques)
@@ -32,9 +32,11 @@ def add_parsers(sub) -> None:
 
 def cmd_torques(args: argparse.Namespace) -> int:
     from pamkin.cli import _load  # noqa: PLC0415
+    from pamkin.cli.bounds import check_count, check_memory  # noqa: PLC0415
     from pamkin.errors import ConfigurationError  # noqa: PLC0415
     from pamkin.human.groups import load_groups  # noqa: PLC0415
     from pamkin.human.rom import load_rom  # noqa: PLC0415
+    from pamkin.outputs import strict_json  # noqa: PLC0415
 
     model = _load(args.osim)
     rom = load_rom(args.rom, args.side)
@@ -45,6 +47,9 @@ def cmd_torques(args: argparse.Namespace) -> int:
         if name not in model.coordinates:
             raise ConfigurationError(f"unknown coordinate {c!r}; valid: {model.coordinates}")
         coords.append(name)
+    check_count("-n", args.n, 2, 201)
+    check_memory(f"torques on a {args.n}^{len(coords)} grid", args.n ** len(coords), 3 * 8 * len(model.muscles)
+                 * len(model.coordinates))
     if not 0.0 <= args.activation <= 1.0:
         raise ConfigurationError("--activation must lie in [0, 1]")
     grid = rom.grid(coords, args.n)
@@ -68,7 +73,7 @@ def cmd_torques(args: argparse.Namespace) -> int:
             c: [float(T[:, model.coordinates.index(c)].min()), float(T[:, model.coordinates.index(c)].max())]
             for c in cols}}
     if args.json:
-        print(json.dumps(result, indent=2))
+        print(strict_json(result))
         return 0
     print(f"{result['model']}: {len(q)} configurations over {', '.join(coords)} ({rom.name} range of motion), "
           f"activation {args.activation:g}")

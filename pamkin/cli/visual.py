@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pamkin.cli.bounds import check_count
 from pamkin.errors import ConfigurationError
 from pamkin.outputs import check_output_file, check_output_folder, output_folder
 
@@ -38,7 +39,7 @@ def add_parsers(sub) -> None:
                    help="colour muscles and PAMs by force [N] (default) or by contraction strain [-]")
     s.add_argument("--sweep", metavar="COORD",
                    help="animate this coordinate over the design's range of motion (default: a still picture)")
-    s.add_argument("-n", type=int, default=21, help="samples of the sweep (default 21; played forth and back)")
+    s.add_argument("-n", type=int, default=21, help="samples of the sweep, 2..1001 (default 21; played forth and back)")
     s.add_argument("--set", action="append", default=[], metavar="COORD=VALUE",
                    help="set a coordinate of the shown configuration, degrees (metres for pelvis_tx/ty/tz); "
                         "repeatable (default: every coordinate 0)")
@@ -63,8 +64,8 @@ def add_parsers(sub) -> None:
     s.add_argument("--force", action="store_true",
                    help="replace an existing --out folder whole (no stale files of the old report) (default: refuse)")
     s.add_argument("--side", choices=("r", "l"), default="r", help="leg side (default: r)")
-    s.add_argument("-n", type=int, default=25, help="grid points per coordinate of the surfaces (default 25)")
-    s.add_argument("--n1", type=int, default=101, help="samples of the 1-D curves (default 101)")
+    s.add_argument("-n", type=int, default=25, help="grid points per coordinate of the surfaces, 2..201 (default 25)")
+    s.add_argument("--n1", type=int, default=101, help="samples of the 1-D curves, 2..10001 (default 101)")
     s.add_argument("--pams", metavar="IDS", help="comma-separated actuator ids (default: all)")
     s.add_argument("--partner", metavar="COORD", help="second grid coordinate for every PAM (default: per PAM)")
     s.add_argument("--quiet", action="store_true", help="no progress lines on stderr (default: progress shown)")
@@ -97,6 +98,7 @@ def cmd_view(args: argparse.Namespace) -> int:
         width, height = (int(x) for x in args.size.lower().split("x"))
     except ValueError:
         raise ConfigurationError(f"--size {args.size!r}: expected WIDTHxHEIGHT, e.g. 1000x700") from None
+    check_count("-n", args.n, 2, 1001)
     check_output_file(args.html)            # before any work: not a folder, its folder not a file
     if args.screenshot:
         check_output_file(args.screenshot)
@@ -138,6 +140,8 @@ def cmd_report(args: argparse.Namespace) -> int:
         bar = "#" * int(30 * done / total)
         print(f"[{bar:30s}] {done:2d}/{total}  {key} {name}", file=sys.stderr, flush=True)
 
+    check_count("-n", args.n, 2, 201)
+    check_count("--n1", args.n1, 2, 10001)
     check_output_folder(args.out, args.force)        # before any work
     with output_folder(args.out, args.force) as tmp:   # the report appears complete or not at all
         rep = torque_report(_robot(args.design), pamkin.gait2392(), tmp, side=args.side, n=args.n, n1=args.n1,

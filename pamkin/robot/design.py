@@ -499,3 +499,48 @@ def mirror_roller(r: Roller) -> Roller:
     a, b = r.segment.split("->")
     return Roller(f"{mirror_name(a)}->{mirror_name(b)}", mirror_name(r.body), m(r.centre), m(r.axis), m(r.side),
                   r.radius_m, r.length_m)
+
+
+#: What each field of a design file holds (the documentation's schema table is generated from this).
+FIELD_DOCS = {
+    "name": ("text", "the design's name (default: the file's stem)"),
+    "description": ("text", "free text"),
+    "notes": ("text", "free text"),
+    "rom": ("text", "range of motion in robot/data/rom.yaml (default robot_thesis)"),
+    "force_model": ("text", "PAM force model: " + ", ".join(sorted(festo.MODELS)) + " (default v3)"),
+    "pressure_Pa": ("number [Pa]", "operating pressure (default 620000)"),
+    "fitting_length_m": ("number [m]", "length of each of a PAM's two fittings (default 0.0125)"),
+    "pams": ("list", "the PAMs of the right side (the left is mirrored), at least one"),
+    "pams[].id": ("integer", "distinct, >= 1"),
+    "pams[].name": ("text", "non-empty"),
+    "pams[].human_muscles": ("list of names", "the Gait2392 muscles the PAM replaces (at least one)"),
+    "pams[].primary_coordinate": ("name", "a coordinate of the robot"),
+    "pams[].secondary_coordinates": ("list of names", "coordinates of the robot (default none)"),
+    "pams[].diameter_mm": ("integer", f"Festo DMSP inner diameter, one of {DIAMETERS_MM}"),
+    "pams[].n_parallel": ("integer", "PAMs in parallel on the route, 1-3 (default 1)"),
+    "pams[].resting_length_m": ("number [m]", "the PAM's resting length"),
+    "pams[].tendon_length_m": ("number [m]", "the artificial tendon in series (negative only as a flagged defect)"),
+    "pams[].transmission": ("integer", f"pulley block ratio, one of {TRANSMISSIONS} (default 1: direct)"),
+    "pams[].pam_at": ("name", f"the end of its mount segment the PAM sits at, one of {PAM_AT}"),
+    "pams[].pam_on": ("name", "its mount segment 'p3->p4' (a segment of its route, without a roller)"),
+    "pams[].rollers": ("list", "cable guides on bone, at most one per segment (pamkin.robot.rollers)"),
+    "pams[].notes": ("text", "free text"),
+    "pams[].points": ("list", "the route, origin first, at least 2 distinct names: {type, name, body, location} "
+                              "with the location [m] in the body's frame"),
+}
+
+
+def design_schema_markdown() -> str:
+    """The design file's schema as a Markdown table: field, type, allowed values (from :data:`BOUNDS` and the
+    checks of :func:`design_from_dict`) and meaning."""
+    rng = {"resting_length_m": BOUNDS["resting_length_m"], "tendon_length_m": BOUNDS["tendon_length_m"],
+           "pressure_Pa": BOUNDS["pressure_Pa"], "fitting_length_m": BOUNDS["fitting_length_m"]}
+    rows = ["| field | type | range | meaning |", "|---|---|---|---|"]
+    for name, (kind, doc) in FIELD_DOCS.items():
+        key = name.rpartition(".")[2]
+        r = rng.get(key)
+        text = "" if r is None else (f"({r[0]:g}, {r[1]:g}]" if r[0] == 0.0 else f"[{r[0]:g}, {r[1]:g}]")
+        if key == "points":
+            text = f"each within {BOUNDS['point_distance_m']:g} m of its body's origin"
+        rows.append(f"| `{name}` | {kind} | {text} | {doc} |")
+    return "\n".join(rows)
