@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from pamkin.outputs import strict_json
 
@@ -35,7 +36,9 @@ def add_parsers(sub) -> None:
     s.add_argument("--tolerance", type=float, default=5.0,
                    help="feasible frame: every residual below this %% of its coordinate's peak (default 5)")
     s.add_argument("--solver", default="proxqp", help="qpsolvers backend (default proxqp; daqp, osqp)")
-    s.add_argument("--out", help="folder for gait.json, pressures.csv, moments.csv and pressures.png (default: write nothing)")
+    s.add_argument("--out", help="folder for gait.json, pressures.csv, moments.csv and pressures.png, written whole or "
+                                 "not at all; refused if it holds files unless --force (default: write nothing)")
+    s.add_argument("--force", action="store_true", help="replace an existing --out folder whole (default: refuse)")
     s.add_argument("--json", action="store_true", help="print one JSON object (summary, coordinates, pams) (default: a table)")
     s.set_defaults(func=cmd_gait)
 
@@ -43,6 +46,7 @@ def add_parsers(sub) -> None:
 def cmd_gait(args: argparse.Namespace) -> int:
     from pamkin.errors import ParameterError  # noqa: PLC0415
     from pamkin.gait.plan import gait_plan, write_outputs  # noqa: PLC0415
+    from pamkin.outputs import check_output_folder, output_folder  # noqa: PLC0415
     from pamkin.robot.design import load_design  # noqa: PLC0415
 
     if not 0 < args.tolerance < 100:
@@ -52,10 +56,15 @@ def cmd_gait(args: argparse.Namespace) -> int:
         args.p_max = (load_design(design) if design else load_design()).pressure_Pa / 1e3
     if not 0 < args.p_max <= 800:
         raise ParameterError(f"--p-max must be a pressure in (0, 800] kPa, got {args.p_max}")
+    if args.out:
+        check_output_folder(args.out, args.force)             # before any work
     grf = None if str(args.grf).lower() == "none" else args.grf
     plan = gait_plan(args.design, ik=args.ik, id=args.id, grf=grf, p_max=args.p_max * 1e3,
                      tolerance=args.tolerance / 100, solver=args.solver)
-    files = write_outputs(plan, args.out) if args.out else []
+    files = []
+    if args.out:
+        with output_folder(args.out, args.force) as tmp:       # complete or not at all
+            files = [Path(args.out) / f.name for f in write_outputs(plan, tmp)]
     if args.json:
         d = plan.to_dict()
         d["written"] = [str(f) for f in files]

@@ -8,6 +8,8 @@ import warnings
 
 import numpy as np
 
+from pamkin.outputs import strict_json
+
 
 def add_parsers(sub) -> None:
     s = sub.add_parser(
@@ -98,8 +100,8 @@ def cmd_size(args: argparse.Namespace) -> int:
         sel = [r for r in rows if r["diameter_mm"] == d and r["feasible"]]
         totals[d] = 2 * float(sum(r["resting_length_m"] * r["n_parallel"] for r in sel))
     if args.json:
-        print(json.dumps({"design": robot.design.name, "method": args.method, "rom": robot.design.rom,
-                          "pams": rows, "total_length_both_sides_m": totals}, indent=2, default=float))
+        print(strict_json({"design": robot.design.name, "method": args.method, "rom": robot.design.rom,
+                           "pams": rows, "total_length_both_sides_m": totals}))
         return 0
     print(f"Sizing of design {robot.design.name!r} ({args.method}; range of motion {robot.design.rom}, "
           f"fittings 2 x {robot.design.fitting_length_m} m)")

@@ -62,8 +62,8 @@ import numpy as np
 
 from pamkin._resources import SHARED_DIR
 from pamkin.errors import ParameterError, SolverError, StorageFileError
-from pamkin.outputs import write_file
 from pamkin.opensim.storage import Storage, read_storage
+from pamkin.outputs import strict_json, write_file
 from pamkin.robot import festo
 from pamkin.robot.biped import PamRobot, design_robot
 
@@ -855,14 +855,13 @@ def write_outputs(plan: GaitPlan, out: str | Path) -> list[Path]:
     """Write ``gait.json`` (:meth:`GaitPlan.to_dict`), ``pressures.csv`` (time, then every PAM's
     pressure [kPa]), ``moments.csv`` (time, then ID and robot moment [N·m] per coordinate) and
     ``pressures.png`` (:func:`plot_pressures`) into folder ``out``, each atomically."""
-    import json  # noqa: PLC0415
 
 
     out = Path(out)
     t = plan.trial.times
     files = []
     p = out / "gait.json"
-    write_file(p, json.dumps(plan.to_dict(), indent=2) + "\n")
+    write_file(p, strict_json(plan.to_dict()) + "\n")
     files.append(p)
     head = "time_s," + ",".join(f"{n}_kPa" for n in plan.pam_names)
     rows = [f"{ti:.6f}," + ",".join(f"{v:.3f}" for v in row) for ti, row in zip(t, plan.pressures / 1e3)]
