@@ -15,8 +15,9 @@ from __future__ import annotations
 import hashlib
 import os
 import pickle
-import tempfile
 from pathlib import Path
+
+from pamkin.outputs import write_file
 
 #: Sub-folder of a run folder holding the finished tasks.
 TASKS_DIR = "tasks"
@@ -48,17 +49,8 @@ class RunStore:
             return None          # written by another pamkin version, or cut short: solved again
 
     def save(self, label: str, task, result) -> None:
-        """Store ``result`` of ``task`` under ``label`` (atomically)."""
-        path = self._path(label, task)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as f:
-                pickle.dump(result, f, protocol=4)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        """Store ``result`` of ``task`` under ``label`` (atomically, :func:`pamkin.outputs.write_file`)."""
+        write_file(self._path(label, task), pickle.dumps(result, protocol=4))
 
     def stored(self) -> int:
         """How many finished tasks the folder holds."""
