@@ -24,10 +24,11 @@ CHECKOUT = Path(__file__).resolve().parents[1]
 QUICK_CONFIG = """\
 # a small optimisation: one actuator, one diameter, few samples
 actuators = [16]
+workers = 1
+[first_fit]
 diameters_mm = [20]
 max_parallel = 1
 multistart = 0
-workers = 1
 max_iter = 200
 [samples]
 primary = 9
