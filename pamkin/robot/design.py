@@ -267,9 +267,12 @@ def _unknown(keys, known, path: str, where: str) -> None:
 
 def _int(d: dict, key: str, path: str, where: str, default=None, allowed=None) -> int:
     v = d.get(key, default)
-    if isinstance(v, bool) or not isinstance(v, int):
+    bad = isinstance(v, bool) or not isinstance(v, int)
+    if bad and allowed is None:
         raise _fail(path, f"{where}{key} must be an integer, is {v!r}")
-    if allowed is not None and v not in allowed:
+    if allowed is not None and (bad or v not in allowed):
+        if key == "diameter_mm":
+            raise _fail(path, f"{where}{key} {v!r} is not a Festo DMSP size {tuple(allowed)}")
         raise _fail(path, f"{where}{key} must be one of {tuple(allowed)}, is {v!r}")
     return v
 
@@ -280,6 +283,8 @@ def _number(d: dict, key: str, path: str, where: str, default=None) -> float:
         raise _fail(path, f"{where}{key} must be a finite number, is {v!r}")
     lo, hi = BOUNDS.get(key, (-np.inf, np.inf))
     if not lo <= v <= hi or (key != "tendon_length_m" and v <= 0 and lo == 0.0):
+        if key == "resting_length_m":
+            raise _fail(path, f"{where}{key} must be a positive length in [{lo:g}, {hi:g}] m, is {v!r}")
         raise _fail(path, f"{where}{key} must lie in ({lo:g}, {hi:g}], is {v!r}" if lo == 0.0 else
                     f"{where}{key} must lie in [{lo:g}, {hi:g}], is {v!r}")
     return float(v)
