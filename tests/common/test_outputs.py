@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import threading
-import time
 
 import pytest
 
@@ -77,12 +76,16 @@ def test_an_interrupted_multi_file_output_leaves_the_old_one_whole(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == ["index.html"] and _leftovers(tmp_path) == []
 
 
-def test_view_onto_a_folder_fails_before_any_work_and_writes_nothing(tmp_path, capsys):
-    t0 = time.perf_counter()
+def _no_work(*a, **k):
+    raise AssertionError("the work started before the output path was checked")
+
+
+def test_view_onto_a_folder_fails_before_any_work_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr("pamkin.viz.meshcat_view.build_view", _no_work)
     assert main(["view", "--html", str(tmp_path), "--no-meshes"]) == 2
     err = capsys.readouterr().err
     assert f"{tmp_path}: is a folder" in err and "Traceback" not in err
-    assert time.perf_counter() - t0 < 10 and list(tmp_path.iterdir()) == []
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_optimize_refuses_a_run_folder_before_any_work(tmp_path, capsys):
@@ -95,11 +98,11 @@ def test_optimize_refuses_a_run_folder_before_any_work(tmp_path, capsys):
     assert (run / "design.yaml").read_text() == "a 9-minute run's design" and sorted(os.listdir(run)) == ["design.yaml"]
 
 
-def test_audit_refuses_an_existing_output_folder_before_the_audit(tmp_path, capsys):
+def test_audit_refuses_an_existing_output_folder_before_the_audit(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr("pamkin.audit.measure.audit_design", _no_work)
     out = tmp_path / "audit"
     out.mkdir()
     (out / "scorecard.txt").write_text("another design's scorecard")
-    t0 = time.perf_counter()
     assert main(["audit", "thesis", "--quick", "--out", str(out)]) == 2
-    assert "holds files already" in capsys.readouterr().err and time.perf_counter() - t0 < 20
+    assert "holds files already" in capsys.readouterr().err
     assert (out / "scorecard.txt").read_text() == "another design's scorecard"
