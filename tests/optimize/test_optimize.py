@@ -178,7 +178,7 @@ def test_apply_and_warm_start(tmp_path, monkeypatch):
     ("[mount]\nenabled = \"yes\"\n", "mount.enabled: must be true or false"),
     ("[resize]\nabove = -1\n", "resize.above: must be >= 0"),
     ("[mass]\nmax_kg = -1\n", "mass.max_kg: must lie in \\[0, 1000\\]"),
-    ("[limits]\nmount_cost = 0.2\n", "unknown key mount.cost \\(moved: it is mount.cost now\\)"),
+    ("[limits]\nmount_cost = 0.2\n", "unknown key limits.mount_cost \\(moved: it is mount.cost now\\)"),
     ("[unknown_stage]\nx = 1\n", "unknown section 'unknown_stage'"),
     ("[weights]\nmass = -0.5\n", "weights.mass: must be >= 0"),
 ])
