@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import warnings
 from pathlib import Path
@@ -14,6 +15,7 @@ from pamkin.errors import (
     ParameterError,
     UnsupportedFeatureError,
 )
+from pamkin.human.function_paths import FunctionPaths
 from pamkin.human.kinematics import ConfigLike, Kinematics, KinematicsState
 from pamkin.human.meshes import find_geometry_dir
 from pamkin.human.paths import PathResult, PathSet
@@ -75,8 +77,11 @@ class Model:
         self.urdf_path = Path(urdf_path)
         self.pin_model = pin.buildModelFromUrdf(str(urdf_path))
         self.kinematics = Kinematics(osim, self.pin_model)
-        self.paths = PathSet(self.kinematics, [m.name for m in osim.muscles],
-                             [m.points for m in osim.muscles])
+        fn_cols = [i for i, m in enumerate(osim.muscles) if m.function_path is not None]
+        geometric = tuple(m for m in osim.muscles if m.function_path is None)
+        # the point paths' machinery sees only the muscles with points
+        self._path_osim = dataclasses.replace(osim, muscles=geometric) if fn_cols else osim
+        self.paths = PathSet(self.kinematics, [m.name for m in geometric], [m.points for m in geometric])
         # sparse (muscle, coordinate) pairs after the coupling: a dependent coordinate's pairs move
         # to its independent (root) coordinate
         kin = self.kinematics
@@ -90,13 +95,16 @@ class Model:
         if any(m.wraps for m in osim.muscles):
             self._init_wrapping(compiled=engine == "compiled")
         self._fast = None
-        if engine == "compiled":
+        self._functions = None
+        if fn_cols:
+            self._init_function_paths(fn_cols)
+        if engine == "compiled" and geometric:
 
             try:
                 self._fast = FastPaths(self.paths)
             except TypeError:   # a function type without compiled form: numpy engine
                 self._fast = None
-        elif engine != "numpy":
+        if engine not in ("compiled", "numpy"):
             raise ValueError(f"engine must be 'compiled' or 'numpy', not {engine!r}")
         self._fastwrap = None
         if self._fast is not None and self.wrapping is not None and self.wrapping.compiled:
@@ -126,7 +134,7 @@ class Model:
 
     def _init_wrapping(self, compiled: bool) -> None:
         kin = self.kinematics
-        self.wrapping = WrappedPaths(self.paths, [m.wraps for m in self.osim.muscles], compiled=compiled)
+        self.wrapping = WrappedPaths(self.paths, [m.wraps for m in self._path_osim.muscles], compiled=compiled)
         nc = len(kin.coordinates)
         moves = np.zeros((len(kin.frames), nc), dtype=bool)   # body b moves with coordinate c
         for j in range(kin.n_joints):
@@ -135,7 +143,7 @@ class Model:
         pairs = {(int(m), int(c)) for m, c in straight}
         wrapped = set()
         for m in self.wrapping.indices:
-            mus = self.osim.muscles[m]
+            mus = self._path_osim.muscles[m]
             bodies = {kin.frames.index(p.body) for p in mus.points}
             bodies |= {kin.frames.index(w.wrap_object.body) for w in mus.wraps}
             for c in range(nc):
@@ -198,14 +206,36 @@ class Model:
         np.add.at(R.T, fw.kp_out, part.T)
         return PathResult(L, self._wpairs, R)
 
+    def _init_function_paths(self, fn_cols: list[int]) -> None:
+        """Function-based paths beside the point paths; the merged (muscle, coordinate) pair list."""
+        kin, osim = self.kinematics, self.osim
+        self._functions = FunctionPaths(kin.coordinates, [osim.muscles[i].function_path for i in fn_cols])
+        self._fn_cols = np.array(fn_cols, dtype=int)
+        self._geo_cols = np.array([i for i, m in enumerate(osim.muscles) if m.function_path is None], dtype=int)
+        geo = self._geometry_pairs()
+        geo_global = [(int(self._geo_cols[m]), int(c)) for m, c in geo]
+        fp = self._functions.pairs
+        fn_global = [(int(self._fn_cols[k]), int(kin.root_of[c])) for k, c in fp]
+        merged = sorted(set(geo_global) | set(fn_global))
+        index = {pq: j for j, pq in enumerate(merged)}
+        self._mpairs = np.array(merged, dtype=int).reshape(-1, 2)
+        self._geo_pair_pos = np.array([index[pq] for pq in geo_global], dtype=int)
+        self._fn_pair_pos = np.array([index[pq] for pq in fn_global], dtype=int)
+        self._fn_pair_coord = fp[:, 1].copy()
+
+    def _geometry_pairs(self) -> np.ndarray:
+        if self.wrapping is not None:
+            return self._wpairs
+        return self._pairs if self.kinematics.couplers else self.paths.pairs
+
     @property
     def pairs(self) -> np.ndarray:
         """(K, 2) (muscle, coordinate) pairs whose moment arms :meth:`path_result` returns: the spanned
         pairs about independent coordinates (a wrapped path also spans the joints that move its wrap
-        objects relative to its points)."""
-        if self.wrapping is not None:
-            return self._wpairs.copy()
-        return (self._pairs if self.kinematics.couplers else self.paths.pairs).copy()
+        objects relative to its points; a function-based path spans the coordinates it names)."""
+        if self._functions is not None:
+            return self._mpairs.copy()
+        return self._geometry_pairs().copy()
 
     @property
     def coordinates(self) -> list[str]:
@@ -252,14 +282,36 @@ class Model:
     @property
     def muscles(self) -> list[str]:
         """Muscle names in ForceSet order."""
-        return list(self.paths.names)
+        return [m.name for m in self.osim.muscles]
 
     def path_result(self, q: ConfigLike, moment_arms: bool = True, chunk: int = 65536) -> PathResult:
-        """Lengths and sparse moment arms (only spanned muscle × coordinate pairs).
+        """Lengths and sparse moment arms (only spanned muscle × coordinate pairs, :attr:`pairs`).
 
         Large batches are processed in chunks of ``chunk`` configurations (bounded memory).
+        Function-based paths (OpenSim's ``FunctionBasedPath``) evaluate their functions; their moment
+        arms are the file's moment-arm functions when it gives them (as OpenSim uses them), else −∂l/∂q.
         """
         q = self.kinematics.as_q(q)
+        if self._functions is None:
+            return self._geometry_path_result(q, moment_arms, chunk)
+        N = len(q)
+        L = np.zeros((N, len(self.osim.muscles)))
+        R = np.zeros((N, len(self._mpairs))) if moment_arms else None
+        if len(self._geo_cols):
+            g = self._geometry_path_result(q, moment_arms, chunk)
+            L[:, self._geo_cols] = g.lengths
+            if R is not None:
+                R[:, self._geo_pair_pos] = g.moment_arms
+        Lf, Rf = self._functions.evaluate(q, moment_arms)
+        L[:, self._fn_cols] = Lf
+        if R is not None:
+            if self.kinematics.couplers:    # a dependent coordinate's moment arm moves to its independent one
+                Rf = Rf * self.kinematics.dependent_derivatives(q)[:, self._fn_pair_coord]
+            np.add.at(R.T, self._fn_pair_pos, Rf.T)
+        return PathResult(L, self._mpairs, R)
+
+    def _geometry_path_result(self, q: np.ndarray, moment_arms: bool, chunk: int) -> PathResult:
+        """:meth:`path_result` of the paths with points (``q`` already validated)."""
         Lw = Rp = None
         if self._fastwrap is not None:      # in chunks: bounded memory
             parts = [self._fastwrap.evaluate(q[i:i + chunk], moment_arms) for i in range(0, max(len(q), 1), chunk)]
@@ -417,10 +469,11 @@ class Model:
         items = groups.items() if isinstance(groups, dict) else [(g.key, g.muscles) for g in groups]
         out = {}
         for key, muscles in items:
-            missing = [m for m in muscles if m not in self.paths.names]
+            names = self.muscles
+            missing = [m for m in muscles if m not in names]
             if missing:
                 raise KeyError(f"group {key!r}: unknown muscles {missing}")
-            idx = [self.paths.names.index(m) for m in muscles]
+            idx = [names.index(m) for m in muscles]
             out[key] = T[:, idx].sum(axis=1)
         return out
 

@@ -216,3 +216,96 @@ def _simm_coefficients(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.nda
     c[nm1] *= 3.0
     d[nm1] = d[nm2]
     return b, c, d
+
+
+def polynomial_exponents(dimension: int, order: int) -> np.ndarray:
+    """Exponents of OpenSim's ``MultivariatePolynomialFunction`` terms, in its coefficient order.
+
+    Ascending powers starting from the last variable: for (X, Y, Z) and order 3 the terms are
+    1, Z, Z², Z³, Y, YZ, YZ², Y², Y²Z, Y³, X, XZ, ... X³ (OpenSim's documented table).
+
+    Returns: (n_terms, dimension) integer exponents; n_terms = C(dimension + order, order).
+    """
+    if dimension < 1 or order < 0:
+        raise ValueError(f"polynomial needs dimension >= 1 and order >= 0, not {dimension}, {order}")
+
+    def terms(n: int, p: int):
+        if n == 0:
+            yield ()
+            return
+        for e in range(p + 1):
+            for rest in terms(n - 1, p - e):
+                yield (e,) + rest
+
+    return np.array(list(terms(dimension, order)), dtype=np.int64).reshape(-1, dimension)
+
+
+@dataclass(frozen=True)
+class MultivariatePolynomial:
+    """OpenSim's ``MultivariatePolynomialFunction``: f(x₁ … x_d) = Σ c_k Π x_i^e_ki.
+
+    Attributes:
+        dimension: Number of variables d.
+        order: Largest sum of exponents in one term.
+        coefficients: One per term, in OpenSim's order (:func:`polynomial_exponents`).
+    """
+
+    dimension: int
+    order: int
+    coefficients: tuple[float, ...]
+    _exp: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        exp = polynomial_exponents(self.dimension, self.order)
+        if len(self.coefficients) != len(exp):
+            raise ValueError(f"MultivariatePolynomialFunction of dimension {self.dimension} and order "
+                             f"{self.order} needs {len(exp)} coefficients, has {len(self.coefficients)}")
+        object.__setattr__(self, "_exp", exp)
+
+    @property
+    def exponents(self) -> np.ndarray:
+        """(n_terms, dimension) exponents of the terms."""
+        return self._exp
+
+    def _powers(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float).reshape(-1, self.dimension)
+        return x[:, :, None] ** np.arange(self.order + 1)          # (N, d, order+1)
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        """f at (N, d) points -> (N,)."""
+        P = self._powers(x)
+        terms = np.prod(P[:, np.arange(self.dimension), self._exp], axis=2)    # (N, n_terms)
+        return terms @ np.asarray(self.coefficients, dtype=float)
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        """∂f/∂x_i at (N, d) points -> (N, d)."""
+        P = self._powers(x)
+        dims = np.arange(self.dimension)
+        c = np.asarray(self.coefficients, dtype=float)
+        out = np.empty((P.shape[0], self.dimension))
+        for i in range(self.dimension):
+            e = self._exp.copy()
+            scale = e[:, i].astype(float)
+            e[:, i] = np.maximum(e[:, i] - 1, 0)
+            out[:, i] = np.prod(P[:, dims, e], axis=2) @ (c * scale)
+        return out
+
+
+@dataclass(frozen=True)
+class OneVariable:
+    """A scalar function used where a function of the coordinates is expected (one variable)."""
+
+    function: ScalarFunction
+    dimension: int = 1
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        """f at (N, 1) points -> (N,)."""
+        return self.function.value(np.asarray(x, dtype=float).reshape(-1))
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        """df/dx at (N, 1) points -> (N, 1)."""
+        return self.function.derivative(np.asarray(x, dtype=float).reshape(-1))[:, None]
+
+
+#: A function of several coordinates (a ``FunctionBasedPath``'s length or moment-arm function).
+CoordinateFunction = MultivariatePolynomial | OneVariable

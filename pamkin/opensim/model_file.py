@@ -46,8 +46,11 @@ import numpy as np
 from pamkin.errors import OsimError, UnsupportedFeatureError
 from pamkin.opensim.functions import (
     Constant,
+    CoordinateFunction,
     LinearFunction,
     MultiplierFunction,
+    MultivariatePolynomial,
+    OneVariable,
     PolynomialFunction,
     ScalarFunction,
     SimmSpline,
@@ -342,15 +345,32 @@ AnyPathPoint = PathPoint | ConditionalPathPoint | MovingPathPoint
 
 
 @dataclass(frozen=True)
+class FunctionPath:
+    """An OpenSim ``FunctionBasedPath``: the path length as a function of some coordinates.
+
+    Attributes:
+        coordinates: The coordinates the functions take, in argument order (names).
+        length: Length l(q) [m].
+        moment_arms: One function per coordinate giving its moment arm [m or m/m], or empty:
+            then the moment arms are −∂l/∂q (OpenSim's rule).
+    """
+
+    coordinates: tuple[str, ...]
+    length: CoordinateFunction
+    moment_arms: tuple[CoordinateFunction, ...] = ()
+
+
+@dataclass(frozen=True)
 class Muscle:
     """A musculotendon actuator with a straight-line path.
 
     Attributes:
         name: Muscle name.
         kind: OpenSim class (``Thelen2003Muscle``, ``Millard2012EquilibriumMuscle`` or ``PathActuator``).
-        points: Path points in order (origin first).
+        points: Path points in order (origin first); empty for a function-based path.
         params: Scalar properties by OpenSim property name (SI units).
         wraps: The path's PathWrapSet (wrap objects it may wrap over), in order.
+        function_path: The ``FunctionBasedPath`` that replaces the points, or None.
     """
 
     name: str
@@ -358,6 +378,7 @@ class Muscle:
     points: tuple[AnyPathPoint, ...]
     params: dict[str, float] = field(hash=False, compare=False)
     wraps: tuple[PathWrap, ...] = ()
+    function_path: FunctionPath | None = None
 
 
 @dataclass(frozen=True)
@@ -976,6 +997,14 @@ def _read_muscles(rd: _Reader, model_el: ET.Element, body_names: set[str],
     for f in forceset:
         name = f.get("name") or ""
         gp = f.find("GeometryPath")
+        fbp = f.find("FunctionBasedPath")
+        if gp is None and fbp is not None:
+            if f.tag not in path_classes:
+                raise rd.err(f"force type <{f.tag}> has a path but is not supported (path classes: "
+                             f"{', '.join(path_classes)})", f, unsupported=True)
+            out.append(Muscle(name, f.tag, (), _read_params(rd, f), (),
+                              _read_function_path(rd, fbp, f, coord_names)))
+            continue
         if gp is None and f.tag not in path_classes:
             if skipped is not None:   # no path: cannot change kinematics or muscle paths
                 skipped.append(f"{f.tag} {name!r}")
@@ -997,25 +1026,82 @@ def _read_muscles(rd: _Reader, model_el: ET.Element, body_names: set[str],
         wraps = _read_path_wraps(rd, f, gp, len(points), wrap_objects or {})
         if isinstance(points[0], ConditionalPathPoint) or isinstance(points[-1], ConditionalPathPoint):
             raise rd.err("first and last path points must not be conditional", f, unsupported=True)
-        params = {}
-        if f.tag in PATH_ONLY_CLASSES:
-            for key in PATH_ONLY_PROPERTIES:
-                if f.find(key) is not None:
-                    params[key] = rd.floats(f, key, 1)[0]
-            out.append(Muscle(name, f.tag, tuple(points), params, wraps))
-            continue
-        defaults = {"Thelen2003Muscle": THELEN_PROPERTIES, "PathActuator": PATH_ACTUATOR_PROPERTIES}.get(
-            f.tag, MILLARD_PROPERTIES)
-        for key, default in defaults.items():
-            el = f.find(key)
-            if el is None:
-                if math.isnan(default):
-                    raise rd.err(f"missing <{key}>", f)
-                params[key] = default
-            else:
-                params[key] = rd.floats(f, key, 1, allow_inf=key in ("min_control", "max_control"))[0]
-        out.append(Muscle(name, f.tag, tuple(points), params, wraps))
+        out.append(Muscle(name, f.tag, tuple(points), _read_params(rd, f), wraps))
     return tuple(out)
+
+
+def _read_params(rd: _Reader, f: ET.Element) -> dict[str, float]:
+    """Scalar properties of a path-bearing force (defaults where OpenSim has them)."""
+    params = {}
+    if f.tag in PATH_ONLY_CLASSES:
+        for key in PATH_ONLY_PROPERTIES:
+            if f.find(key) is not None:
+                params[key] = rd.floats(f, key, 1)[0]
+        return params
+    defaults = {"Thelen2003Muscle": THELEN_PROPERTIES, "PathActuator": PATH_ACTUATOR_PROPERTIES}.get(
+        f.tag, MILLARD_PROPERTIES)
+    for key, default in defaults.items():
+        el = f.find(key)
+        if el is None:
+            if math.isnan(default):
+                raise rd.err(f"missing <{key}>", f)
+            params[key] = default
+        else:
+            params[key] = rd.floats(f, key, 1, allow_inf=key in ("min_control", "max_control"))[0]
+    return params
+
+
+def _read_coordinate_function(rd: _Reader, holder: ET.Element, owner: ET.Element, n: int,
+                              what: str) -> CoordinateFunction:
+    """A function of ``n`` coordinates: a MultivariatePolynomialFunction, or a scalar function when n = 1."""
+    if holder.tag == "MultivariatePolynomialFunction":
+        el = holder
+    else:
+        children = list(holder)
+        if len(children) != 1:
+            raise rd.err(f"<{what}> needs exactly one function, has {len(children)}", owner)
+        el = children[0]
+    if el.tag == "MultivariatePolynomialFunction":
+        dim = int(rd.floats(el, "dimension", 1)[0])
+        order = int(rd.floats(el, "order", 1)[0])
+        if dim != n:
+            raise rd.err(f"<{what}>: MultivariatePolynomialFunction of dimension {dim} for {n} coordinate(s)",
+                         owner)
+        try:
+            return MultivariatePolynomial(dim, order, rd.floats(el, "coefficients"))
+        except ValueError as e:
+            raise rd.err(f"<{what}>: {e}", owner) from None
+    if n != 1:
+        raise rd.err(f"<{what}>: function type <{el.tag}> of {n} coordinates is not supported "
+                     "(MultivariatePolynomialFunction is; scalar functions take one coordinate)", owner,
+                     unsupported=True)
+    return OneVariable(rd.function(el, owner))
+
+
+def _read_function_path(rd: _Reader, fbp: ET.Element, owner: ET.Element,
+                        coord_names: set[str]) -> FunctionPath:
+    """An OpenSim ``FunctionBasedPath`` (coordinates, length function, optional moment-arm functions)."""
+    names = tuple(_last(c) for c in rd.text(fbp, "coordinate_paths").split())
+    if not names:
+        raise rd.err("FunctionBasedPath without <coordinate_paths>", owner)
+    for c in names:
+        if c not in coord_names:
+            raise rd.err(f"FunctionBasedPath names unknown coordinate {c!r}", owner)
+    if len(set(names)) != len(names):
+        raise rd.err(f"FunctionBasedPath names a coordinate twice: {' '.join(names)}", owner)
+    length_el = fbp.find("length_function")
+    if length_el is None:
+        raise rd.err("FunctionBasedPath without <length_function>", owner)
+    length = _read_coordinate_function(rd, length_el, owner, len(names), "length_function")
+    arms_el = fbp.find("moment_arm_functions")
+    arms = ()
+    if arms_el is not None and len(list(arms_el)):
+        arms = tuple(_read_coordinate_function(rd, el, owner, len(names), "moment_arm_functions")
+                     for el in arms_el)
+        if len(arms) != len(names):
+            raise rd.err(f"FunctionBasedPath has {len(arms)} moment-arm functions for {len(names)} coordinates",
+                         owner)
+    return FunctionPath(names, length, arms)
 
 
 def _read_point(rd: _Reader, p: ET.Element, muscle: ET.Element, body_names: set[str],
@@ -1063,8 +1149,13 @@ def _read_point(rd: _Reader, p: ET.Element, muscle: ET.Element, body_names: set[
 
 
 # --------------------------------------------------------------------------- plain-data form
-def function_to_dict(fn: ScalarFunction) -> dict:
-    """Plain-data form of a scalar function (for the project's YAML model files)."""
+def function_to_dict(fn: ScalarFunction | CoordinateFunction) -> dict:
+    """Plain-data form of a function (for the project's YAML model files)."""
+    if isinstance(fn, MultivariatePolynomial):
+        return {"type": "MultivariatePolynomialFunction", "dimension": fn.dimension, "order": fn.order,
+                "coefficients": list(fn.coefficients)}
+    if isinstance(fn, OneVariable):
+        return function_to_dict(fn.function)
     if isinstance(fn, Constant):
         return {"type": "Constant", "value": fn.c}
     if isinstance(fn, LinearFunction):
@@ -1079,7 +1170,7 @@ def function_to_dict(fn: ScalarFunction) -> dict:
 
 
 def function_from_dict(d: dict) -> ScalarFunction:
-    """Inverse of :func:`function_to_dict`."""
+    """Inverse of :func:`function_to_dict` (scalar functions)."""
     t = d["type"]
     if t == "Constant":
         return Constant(float(d["value"]))
@@ -1092,6 +1183,24 @@ def function_from_dict(d: dict) -> ScalarFunction:
     if t == "MultiplierFunction":
         return MultiplierFunction(function_from_dict(d["function"]), float(d["scale"]))
     raise ValueError(f"unknown function type {t!r}")
+
+
+def _coordinate_function_from_dict(d: dict) -> CoordinateFunction:
+    if d["type"] == "MultivariatePolynomialFunction":
+        return MultivariatePolynomial(int(d["dimension"]), int(d["order"]), tuple(map(float, d["coefficients"])))
+    return OneVariable(function_from_dict(d))
+
+
+def _function_path_to_dict(p: FunctionPath) -> dict:
+    return {"coordinates": list(p.coordinates), "length": function_to_dict(p.length),
+            "moment_arms": [function_to_dict(f) for f in p.moment_arms]}
+
+
+def _function_path_from_dict(d: dict | None) -> FunctionPath | None:
+    if d is None:
+        return None
+    return FunctionPath(tuple(d["coordinates"]), _coordinate_function_from_dict(d["length"]),
+                        tuple(_coordinate_function_from_dict(f) for f in d.get("moment_arms", [])))
 
 
 def _frame_to_dict(f: OffsetFrame) -> dict:
@@ -1168,7 +1277,8 @@ def model_to_dict(model: OsimModel) -> dict:
                          "rotational": c.rotational} for c in model.coordinates],
         "muscles": [{"name": m.name, "kind": m.kind, "params": dict(m.params),
                      "points": [_point_to_dict(p) for p in m.points],
-                     **({"wraps": [_wrap_to_dict(w) for w in m.wraps]} if m.wraps else {})}
+                     **({"wraps": [_wrap_to_dict(w) for w in m.wraps]} if m.wraps else {}),
+                     **({"function_path": _function_path_to_dict(m.function_path)} if m.function_path else {})}
                     for m in model.muscles],
     }
     if model.couplers:
@@ -1197,7 +1307,8 @@ def model_from_dict(d: dict, path: str = "<data>") -> OsimModel:
                           for c in d["coordinates"]),
         muscles=tuple(Muscle(m["name"], m["kind"], tuple(point_from_dict(p) for p in m["points"]),
                              {k: float(v) for k, v in m["params"].items()},
-                             tuple(_wrap_from_dict(w) for w in m.get("wraps", []))) for m in d["muscles"]),
+                             tuple(_wrap_from_dict(w) for w in m.get("wraps", [])),
+                             _function_path_from_dict(m.get("function_path"))) for m in d["muscles"]),
         credits=d.get("credits", ""),
         couplers=tuple(CoordinateCoupler(k["name"], k["dependent"], k["independent"],
                                          function_from_dict(k["function"]), float(k.get("scale_factor", 1.0)))
