@@ -116,6 +116,8 @@ class Model:
         self._unsupported_force = [m for m in osim.muscles if m.kind not in FORCE_CLASSES]
         self._thelen_cols = [i for i, k in enumerate(kinds) if k == "Thelen2003Muscle"]
         self._millard_cols = [i for i, k in enumerate(kinds) if k == "Millard2012EquilibriumMuscle"]
+        self._actuator_cols = [i for i, k in enumerate(kinds) if k == "PathActuator"]
+        self._spring_cols = [i for i, k in enumerate(kinds) if k == "PathSpring"]
         self.thelen_params: ThelenParams | None = None
         self.millard_params: MillardParams | None = None
         if not self._unsupported_force:
@@ -357,19 +359,53 @@ class Model:
         return self.path_result(q).dense_moment_arms(len(self.coordinates))
 
     def _check_forces(self) -> None:
+        for i in self._spring_cols:
+            m = self.osim.muscles[i]
+            missing = [k for k in ("stiffness", "resting_length") if k not in m.params]
+            if missing:
+                raise ParameterError(f"{self.osim.path}: <PathSpring name=\"{m.name}\">: no <{missing[0]}> "
+                                     "(OpenSim's default is NaN)")
         if self._unsupported_force:
             m = self._unsupported_force[0]
             raise UnsupportedFeatureError(
-                self.osim.path, f"muscle forces are implemented for {' and '.join(FORCE_CLASSES)} only; "
+                self.osim.path, f"forces are implemented for {', '.join(FORCE_CLASSES)} only; "
                 f"{len(self._unsupported_force)} muscle(s) are {m.kind} (kinematics, lengths and moment "
                 "arms work)", element=m.kind, component=m.name)
 
     def _static_forces(self, L: np.ndarray, activation, rigid_tendon: bool, full: bool):
         """Tendon forces (N, n_muscles) at lengths ``L`` and, if ``full``, the equilibrium (Thelen2003
         muscles: :mod:`pamkin.muscles.thelen2003`; Millard2012: :mod:`pamkin.muscles.millard2012`; ``failed`` entries,
-        where OpenSim finds no equilibrium, are NaN and raise an :class:`EquilibriumWarning`)."""
+        where OpenSim finds no equilibrium, are NaN and raise an :class:`EquilibriumWarning`). PathActuators pull
+        with optimal_force × control (``activation`` is the control, not clamped: OpenSim's
+        ``computeActuation``); PathSprings with stiffness × max(0, L − resting_length) (zero lengthening speed:
+        the dissipation term vanishes). Their fibre fields in the equilibrium are NaN."""
         self._check_forces()
-        if self.millard_params is None:
+        special = self._actuator_cols + self._spring_cols
+        if not special:
+            return self._muscle_forces(L, activation, rigid_tendon, full)
+        try:
+            act = np.broadcast_to(np.asarray(activation, dtype=float), L.shape)
+        except ValueError:
+            raise ConfigurationError(f"activation of shape {np.shape(activation)} does not broadcast "
+                                     f"to the lengths' shape {L.shape}") from None
+        F, eq = self._muscle_forces(L, act, rigid_tendon, full, mixed=True)
+        F = np.array(F, dtype=float)
+        params = [self.osim.muscles[i].params for i in special]
+        for k, i in enumerate(self._actuator_cols):
+            F[:, i] = params[k]["optimal_force"] * act[:, i]
+        for i in self._spring_cols:
+            p = self.osim.muscles[i].params
+            F[:, i] = p["stiffness"] * np.maximum(L[:, i] - p["resting_length"], 0.0)
+        if eq is not None:
+            for f in ("fiber_length", "normalized_fiber_length", "pennation_angle", "tendon_length",
+                      "active_fiber_force", "passive_fiber_force"):
+                getattr(eq, f)[:, special] = np.nan
+            eq.tendon_force[:, special] = F[:, special]
+        return F, eq
+
+    def _muscle_forces(self, L: np.ndarray, activation, rigid_tendon: bool, full: bool, mixed: bool = False):
+        """:meth:`_static_forces` of the Thelen2003 and Millard2012 muscles (other columns 0 when ``mixed``)."""
+        if self.millard_params is None and not mixed:
             if self.thelen_params is None:      # a model without muscles
                 return np.zeros(L.shape), None
             if full:
@@ -381,23 +417,26 @@ class Model:
             return F, None
 
         rigid = True if rigid_tendon else None     # False: each muscle's ignore_tendon_compliance
-        if not self._thelen_cols:
+        if not self._thelen_cols and not mixed:
             eq = millard2012.equilibrium(L, self.millard_params, activation, rigid_tendon=rigid)
-        else:                                   # Thelen2003 and Millard2012 muscles in one model
+        else:                                   # Thelen2003, Millard2012 and other forces in one model
             try:
                 act = np.broadcast_to(np.asarray(activation, dtype=float), L.shape)
             except ValueError:
                 raise ConfigurationError(f"activation of shape {np.shape(activation)} does not broadcast "
                                          f"to the lengths' shape {L.shape}") from None
             th, mi = self._thelen_cols, self._millard_cols
-            a = equilibrium(L[:, th], self.thelen_params, act[:, th], rigid_tendon=rigid_tendon)
-            b = millard2012.equilibrium(L[:, mi], self.millard_params, act[:, mi], rigid_tendon=rigid)
+            a = equilibrium(L[:, th], self.thelen_params, act[:, th], rigid_tendon=rigid_tendon) if th else None
+            b = millard2012.equilibrium(L[:, mi], self.millard_params, act[:, mi], rigid_tendon=rigid) if mi else None
             parts = {}
             for f in ("fiber_length", "normalized_fiber_length", "pennation_angle", "tendon_length",
                       "tendon_force", "active_fiber_force", "passive_fiber_force", "clamped", "failed"):
-                x = np.zeros(L.shape, dtype=getattr(b, f).dtype)
-                x[:, th] = getattr(a, f, False)
-                x[:, mi] = getattr(b, f)
+                dtype = bool if f in ("clamped", "failed") else float
+                x = np.zeros(L.shape, dtype=dtype)
+                if a is not None:
+                    x[:, th] = getattr(a, f, False)
+                if b is not None:
+                    x[:, mi] = getattr(b, f)
                 parts[f] = x
             eq = millard2012.Equilibrium(**parts)
         self._warn_failed(eq.failed)
@@ -529,7 +568,7 @@ class Model:
 
 
 #: Muscle classes with static forces.
-FORCE_CLASSES = ("Thelen2003Muscle", "Millard2012EquilibriumMuscle")
+FORCE_CLASSES = ("Thelen2003Muscle", "Millard2012EquilibriumMuscle", "PathActuator", "PathSpring")
 
 
 def _millard_params(osim: OsimModel, muscles) -> MillardParams:

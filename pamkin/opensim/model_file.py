@@ -15,9 +15,12 @@ Supported:
   ``scale_factor · f(independent)``.
 * Muscles ``Thelen2003Muscle`` and ``Millard2012EquilibriumMuscle`` with
   ``PathPoint``, ``ConditionalPathPoint`` and ``MovingPathPoint`` paths (points on bodies, ground
-  or offset frames); every other path-bearing force (:data:`PATH_ONLY_CLASSES`: ``PathActuator``,
-  ``PathSpring``, other muscle classes) loads as a path of its class: lengths and moment arms,
-  no muscle forces.
+  or offset frames); every other path-bearing force (``PathActuator``, :data:`PATH_ONLY_CLASSES`:
+  ``PathSpring``, other muscle classes) loads as a path of its class: lengths and moment arms
+  (static forces of ``PathActuator`` and ``PathSpring`` too, no forces of the other classes).
+* ``FunctionBasedPath`` in place of a ``GeometryPath`` (OpenSim 4.5+): coordinates, a
+  ``MultivariatePolynomialFunction`` (or a scalar function of one coordinate) for the length, optional
+  moment-arm functions (:class:`FunctionPath`).
 
 Forces without a path (coordinate actuators, limit forces, bushings, contact, springs),
 contact geometry, controllers, probes and markers cannot change kinematics or muscle paths:
@@ -62,10 +65,11 @@ GROUND = "ground"
 #: Muscle classes whose parameters pamkin reads.
 MUSCLE_CLASSES = ("Thelen2003Muscle", "Millard2012EquilibriumMuscle")
 #: Path actuators read like muscles (their path; ``optimal_force`` and the control range as
-#: parameters): lengths and moment arms work, forces need a muscle model. ``pamkin export-osim``
-#: writes PAMs as PathActuators.
+#: parameters): lengths, moment arms and forces (optimal_force × control, as OpenSim's
+#: ``computeActuation``). ``pamkin export-osim`` writes PAMs as PathActuators.
 PATH_ACTUATOR_CLASSES = ("PathActuator",)
-#: Other forces with a ``GeometryPath`` that load as paths (lengths and moment arms; no forces).
+#: Other forces with a ``GeometryPath`` that load as paths (lengths and moment arms); of these, ``PathSpring``
+#: has forces too (stiffness × max(0, L − resting_length) at zero speed, OpenSim's ``getTension``).
 PATH_ONLY_CLASSES = ("PathSpring", "Schutte1993Muscle_Deprecated", "Delp1990Muscle_Deprecated",
                      "Thelen2003Muscle_Deprecated", "RigidTendonMuscle", "DeGrooteFregly2016Muscle",
                      "Millard2012AccelerationMuscle", "McKibbenActuator", "Ligament",
