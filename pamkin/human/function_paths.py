@@ -29,7 +29,8 @@ class _PolyGroup:
     members: np.ndarray          # (m,) local path indices
     exponents: np.ndarray        # (n_terms, d) basis exponents
     length: np.ndarray           # (n_terms, m) length coefficients
-    arms: np.ndarray             # (d, n_terms, m) moment-arm coefficients per argument
+    arms: np.ndarray             # (n_terms, d*m) moment-arm coefficients, argument-major columns
+    arm_pairs: np.ndarray | None = None   # (d*m,) their columns in the pair list
 
 
 def _embed(poly: MultivariatePolynomial, index: dict[tuple[int, ...], int], n_terms: int) -> np.ndarray:
@@ -65,7 +66,8 @@ def _build_group(columns: tuple[int, ...], members: list[int], paths: list[Funct
         for i in range(d):
             A[i, :, j] = (_embed(p.moment_arms[i], index, n) if p.moment_arms
                           else _negative_derivative(p.length, i, index, n))
-    return _PolyGroup(np.array(columns, dtype=int), np.array(members, dtype=int), exps, C, A)
+    return _PolyGroup(np.array(columns, dtype=int), np.array(members, dtype=int), exps, C,
+                      A.transpose(1, 0, 2).reshape(n, d * len(members)))
 
 
 class FunctionPaths:
@@ -93,6 +95,8 @@ class FunctionPaths:
         self.pairs = np.array([(k, c) for k, cols in enumerate(self.columns) for c in cols],
                               dtype=int).reshape(-1, 2)
         self._pair_of = {(int(k), int(c)): j for j, (k, c) in enumerate(self.pairs)}
+        for g in self._groups:
+            g.arm_pairs = np.array([self._pair_of[(int(k), int(c))] for c in g.columns for k in g.members], dtype=int)
 
     def evaluate(self, q: np.ndarray, moment_arms: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
         """Lengths (N, n_paths) [m] and moment arms of :attr:`pairs` (N, K) [m or m/m] at (N, n_coordinates) q."""
@@ -104,8 +108,7 @@ class FunctionPaths:
             T = _monomials(q[:, g.columns], g.exponents)
             L[:, g.members] = T @ g.length
             if R is not None:
-                for i, c in enumerate(g.columns):
-                    R[:, [self._pair_of[(int(k), int(c))] for k in g.members]] = T @ g.arms[i]
+                R[:, g.arm_pairs] = T @ g.arms
         for k in self._scalar:
             self._evaluate_one(k, q, L, R)
         return L, R

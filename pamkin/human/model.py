@@ -224,6 +224,8 @@ class Model:
         self._geo_pair_pos = np.array([index[pq] for pq in geo_global], dtype=int)
         self._fn_pair_pos = np.array([index[pq] for pq in fn_global], dtype=int)
         self._fn_pair_coord = fp[:, 1].copy()
+        # a function of a dependent coordinate: its moment arm moves to the independent one (chain rule)
+        self._fn_dependent = bool(len(fp)) and bool(kin.dependent[fp[:, 1]].any())
 
     def _geometry_pairs(self) -> np.ndarray:
         if self.wrapping is not None:
@@ -306,9 +308,10 @@ class Model:
                 R[:, self._geo_pair_pos] = g.moment_arms
         Lf, Rf = self._functions.evaluate(q, moment_arms)
         L[:, self._fn_cols] = Lf
-        if R is not None:
-            if self.kinematics.couplers:    # a dependent coordinate's moment arm moves to its independent one
-                Rf = Rf * self.kinematics.dependent_derivatives(q)[:, self._fn_pair_coord]
+        if R is not None and not self._fn_dependent:
+            R[:, self._fn_pair_pos] += Rf
+        elif R is not None:                 # a dependent coordinate's moment arm moves to its independent one
+            Rf = Rf * self.kinematics.dependent_derivatives(q)[:, self._fn_pair_coord]
             np.add.at(R.T, self._fn_pair_pos, Rf.T)
         return PathResult(L, self._mpairs, R)
 
