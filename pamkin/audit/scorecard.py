@@ -69,10 +69,10 @@ def scorecard_text(res) -> str:
                      f"{1000 * r['max_segment_penetration_m']:>6.1f} {_one_segment(r):>5} "
                      f"{r['force_ratio']:>7.2f} {r['sensitivity_pct']:>6.1f}  "
                      f"{','.join(str(i) for i in r['intersects']) or '-'}")
-    lines += ["", f"{'criterion':42s} {'value':>10} {'limit':>14}  result"]
+    lines += ["", f"{'criterion':47s} {'value':>10} {'limit':>14}  result"]
     for c in res.criteria:
         verdict = {True: "pass", False: "FAIL", None: "-"}[c["passed"]]
-        lines.append(f"{c['name']:42s} {_fmt(c['value'], 4):>10} {_limit_text(c['limit']):>14}  {verdict}")
+        lines.append(f"{c['name']:47s} {_fmt(c['value'], 4):>10} {_limit_text(c['limit']):>14}  {verdict}")
     sm = res.summary
     lines += ["", "informational: "
               f"sweep NRMSE median {_fmt(sm['sweep_nrmse_median'])}, gait NRMSE median {_fmt(sm['gait_nrmse_median'])}, "
@@ -204,15 +204,15 @@ def capacity_side_by_side(results: list, labels: list[str]) -> str:
 def side_by_side(results: list, labels: list[str]) -> str:
     """Audit summaries of several designs in one table: one line per limit, a column per design
     (``*`` marks a failed limit)."""
-    head = f"{'criterion':42s} {'limit':>14}" + "".join(f" {lab[:16]:>16}" for lab in labels)
+    head = f"{'criterion':47s} {'limit':>14}" + "".join(f" {lab[:16]:>16}" for lab in labels)
     lines = [head]
     for k, c in enumerate(results[0].criteria):
         cells = []
         for r in results:
             cr = r.criteria[k]
             cells.append(f"{_fmt(cr['value'], 4)}{'*' if cr['passed'] is False else ' '}")
-        lines.append(f"{c['name']:42s} {_limit_text(c['limit']):>14}" + "".join(f" {x:>16}" for x in cells))
-    lines.append(f"{'limits failed (*)':42s} {'':>14}" + "".join(f" {len(r.failed):>15} " for r in results))
+        lines.append(f"{c['name']:47s} {_limit_text(c['limit']):>14}" + "".join(f" {x:>16}" for x in cells))
+    lines.append(f"{'limits failed (*)':47s} {'':>14}" + "".join(f" {len(r.failed):>15} " for r in results))
     return "\n".join(lines) + "\n"
 
 
