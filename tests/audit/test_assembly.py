@@ -119,3 +119,37 @@ def test_thesis_design_assembly_figures():
     assert "joint capacity" in text and "body pairs closer than 5 mm (same side)" in text
     table = capacity_side_by_side([res, res], ["thesis", "again"])
     assert table.count("\n") == 22 and "hip_flexion_r - extension" in table
+
+
+@pytest.mark.opensim
+def test_human_capacity_against_opensim(gait2392_path):
+    """The human half of the joint-capacity table (every Gait2392 muscle at activation 1, summed per direction)
+    at four of the audit's random poses equals the same sum of OpenSim 4.6's tendon forces x moment arms
+    (computed in a child process)."""
+    import warnings
+
+    import pamkin
+    from opensim_ref import opensim_reference
+
+    from pamkin.audit.capacity import direction_capacity
+    from pamkin.audit.measure import audit_coordinates, random_poses
+    from pamkin.errors import RangeWarning
+    from pamkin.human.rom import load_rom
+
+    human = pamkin.gait2392()
+    rom = load_rom("robot_thesis", "r")
+    q = random_poses(human, rom, 4, seed=3)
+    ref = opensim_reference(gait2392_path, q, what=("moment_arms", "tendon_forces"))
+    T_ref = np.zeros((len(q), len(human.muscles), len(human.coordinates)))
+    for k, (m, c) in enumerate(ref["pairs"]):
+        T_ref[:, m, c] = ref["tendon_forces"][:, m] * ref["moment_arms"][:, k]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RangeWarning)
+        T = human.torques(q)
+    cols = [human.coordinates.index(c) for c in audit_coordinates(rom)]
+    assert len(cols) == 10
+    for sign in (1.0, -1.0):
+        ours = direction_capacity(T, sign)[:, cols]
+        theirs = direction_capacity(T_ref, sign)[:, cols]
+        assert theirs.min() > 0.5                          # every direction has human muscles acting
+        np.testing.assert_allclose(ours, theirs, rtol=1e-4, atol=1e-3)
