@@ -57,11 +57,12 @@ def _role(pam, i: int) -> str:
         return "origin anchor"
     if i == len(pam.points) - 1:
         return "insertion anchor"
-    name = pt.name
-    if name.endswith(".e") or ".e" in name.split(".")[-1:]:
-        return "eyelet"
-    if name.count(".") >= 2:
-        return "detour guide"
+    parts = pt.name.split(".")
+    last = parts[-1]
+    if len(parts) >= 3 and (last == "e" or (last.startswith("e") and last[1:].isdigit())):
+        return "eyelet"              # pamkin.robot.eyelets names them "p1.p2.e", "p1.p2.e1", ...
+    if len(parts) >= 3:
+        return "detour guide"        # pamkin.robot.detour: "p3.p4.1", ...
     return "via guide"
 
 

@@ -170,3 +170,17 @@ def test_rollers_rebuild_from_the_sheet():
     bad["pams"][0]["rollers"][0]["definition"]["segment"] = "p9->p10"
     with pytest.raises(DataFileError, match="PAM 11: roller"):
         rollers_from_sheet(bad)
+
+
+def test_guide_roles_by_point_kind_and_name():
+    """Intermediate points are named by what the optimiser made them: eyelets (``p1.p2.e``, ``p1.p2.e1``), detour
+    guides (``p3.p4.1``), other via points; the route's ends are its anchors."""
+    from pamkin.build.sheet import _role
+    from pamkin.opensim.model_file import PathPoint
+    from pamkin.robot.design import Pam
+
+    names = ["p1", "p1.p2.e", "p1.p2.e1", "p2", "p2.p3.1", "p2.p3.e.1", "p3"]
+    pts = tuple(PathPoint(n, "femur_r", (0.0, -0.01 * i, 0.0)) for i, n in enumerate(names))
+    pam = Pam(1, "x", ("vas_int_r",), "knee_angle_r", (), 20, 1, 0.1, 0.1, pts)
+    assert [_role(pam, i) for i in range(len(names))] == [
+        "origin anchor", "eyelet", "eyelet", "via guide", "detour guide", "detour guide", "insertion anchor"]
