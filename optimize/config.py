@@ -232,11 +232,26 @@ class PamEnds:
                               "intersecting PAM pairs")
 
 
+@dataclass
+class Separate:
+    """``[separate]``: the separate stage (needs [bone_rounds] for the bone meshes)."""
+
+    enabled: bool = key(False, "the ends of each PAM's mount segment moved on their brackets until same-side PAM "
+                               "bodies are gap_m apart and bone_gap_m from bone (changes moment arms)")
+    gap_m: float = key(0.005, "least gap between two same-side PAM bodies [m]", 0, 0.1)
+    bone_gap_m: float = key(0.005, "least gap between a PAM body and bone [m]", 0, 0.1)
+    max_bracket_m: float = key(0.05, "farthest a moved point may be from its bone [m]", 0, 0.2)
+    max_shift_m: float = key(0.02, "farthest a point may move from where the fit put it [m]", 0, 0.2)
+    rounds: int = key(40, "most rounds of moves", 1, 1000)
+    poses: int = key(60, "random poses (the stage's own stream) the gaps are enforced at", 1, 5000)
+
+
 #: Section name -> its dataclass, in the order of the reference page.
 SECTIONS: dict[str, type] = {
     "samples": Samples, "weights": Weights, "limits": Limits, "first_fit": FirstFit, "unit_budget": UnitBudget,
     "bone_rounds": BoneRounds, "mount": Mount, "resize": Resize, "reallocate": Reallocate, "mass": Mass,
     "walking": Walking, "clearance": Clearance, "rollers": Rollers, "detours": Detours, "pam_ends": PamEnds,
+    "separate": Separate,
 }
 #: Per-actuator tables (free keys, checked by :meth:`RunConfig.validate`).
 TABLES = ("regions", "transmission", "eyelets")
@@ -286,6 +301,7 @@ class RunConfig:
     rollers: Rollers = field(default_factory=Rollers)
     detours: Detours = field(default_factory=Detours)
     pam_ends: PamEnds = field(default_factory=PamEnds)
+    separate: Separate = field(default_factory=Separate)
     regions: dict = key(None, "per actuator or per point: '6' = 0.08, '6.p2' = [0.02, 0.02, 0.0] (box half-widths "
                               "[m])", factory=dict)
     transmission: dict = key(None, "per actuator: '4' = 2 puts a 2:1 pulley block on its PAM (default: the seed "

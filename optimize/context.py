@@ -59,6 +59,7 @@ class RunContext:
         obstacles: Per ``k``: the PAM-PAM pass's obstacles.
         walking: The walking stage's report.
         pam_ends: The pam_ends stage's report lines.
+        separation: The separate stage's report lines.
         stream: Where progress goes (run process only).
         executor: Runs the per-actuator tasks (run process only; :mod:`optimize.executor`).
         store: The run folder's store of finished tasks (run process only; :mod:`optimize.store`).
@@ -79,6 +80,7 @@ class RunContext:
     obstacles: dict = field(default_factory=dict)
     walking: dict | None = None
     pam_ends: list[str] = field(default_factory=list)
+    separation: list[str] = field(default_factory=list)
     stream: Any = None
     executor: Any = None
     store: Any = None

@@ -49,6 +49,7 @@ from pamkin.optimize.stages import (
     reallocate,
     resize,
     rollers,
+    separate,
     unit_budget,
     walking,
 )
@@ -103,6 +104,8 @@ STAGES: tuple[Stage, ...] = (
           "same-body segments into their bone carried round it by via points"),
     Stage("pam_ends", pam_ends.run, lambda c: c.mount.enabled and c.pam_ends.enabled,
           "each PAM's segment and end chosen for the fewest intersecting PAM pairs"),
+    Stage("separate", separate.run, lambda c: c.bone_rounds.enabled and c.separate.enabled,
+          "mount-segment ends moved on their brackets until PAM bodies are 5 mm apart and 5 mm from bone"),
 )
 #: Files of a run folder a new run writes (an existing folder holding any of them is not overwritten).
 RUN_FILES = ("design.yaml", "summary.json", "log.txt", "before_after.png", "config.json")
@@ -219,6 +222,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: str | os.PathLike | None = None, s
     before_after_plot(seed, new, out_dir / "before_after.png",
                       seed_label=f"warm start ({Path(cfg.warm_start).name})" if warm_ids else None)
     log.extend(ctx.pam_ends)
+    log.extend(ctx.separation)
     log.extend(f"fit limits: {line}" for line in summary.get("fit_limits_and_bone", []))
     log.append(f"total {summary['total_seconds']} s (solves {solve_seconds:.1f} s)")
     write_file(out_dir / "log.txt", "\n".join(log) + "\n")
@@ -278,6 +282,8 @@ def _report(ctx: RunContext, results: list[ActuatorResult], seed: Design, new: D
         summary["one_segment"] = {str(r.id): r.mount for r in results if r.mount}
     if ctx.pam_ends:
         summary["pam_ends"] = ctx.pam_ends
+    if ctx.separation:
+        summary["separation"] = ctx.separation
     if ctx.walking:
         summary["walking_check"] = ctx.walking      # optimize.stages.walking: fractions between the trial's frames
     return summary

@@ -46,6 +46,8 @@ from pathlib import Path
 import numpy as np
 
 from pamkin._resources import SHARED_DIR, data_file
+from pamkin.audit.assembly import bone_clearance, body_radius, body_radius_source, pair_gap
+from pamkin.audit.capacity import joint_capacity
 from pamkin.audit.compare import compare_pam, failing_as_worst, finite_or_none
 from pamkin.errors import ConfigurationError, DataFileError, RangeWarning
 from pamkin.gait.plan import gait_plan
@@ -229,6 +231,9 @@ class AuditResult:
         samples: What was sampled (counts, seed, files).
         seconds: Run time [s].
         details: Arrays for figures and views (not in :meth:`to_dict`).
+        assembly: The PAM bodies as measured (radii per Festo size [m] and their source, the gaps) and every
+            pair of bodies closer than the gap (:mod:`pamkin.audit.assembly`).
+        capacity: The joint-capacity table (:func:`pamkin.audit.capacity.joint_capacity`).
     """
 
     design: str
@@ -240,6 +245,8 @@ class AuditResult:
     thresholds: dict
     seconds: float = 0.0
     details: dict = field(default_factory=dict, repr=False)
+    assembly: dict = field(default_factory=dict)
+    capacity: list = field(default_factory=list)
 
     @property
     def passed(self) -> bool:
@@ -257,6 +264,7 @@ class AuditResult:
         return finite_or_none({"design": self.design, "source": self.source, "passed": self.passed,
                                "failed": self.failed, "summary": self.summary, "criteria": self.criteria,
                                "pams": self.pams, "samples": self.samples, "thresholds": self.thresholds,
+                               "assembly": self.assembly, "capacity": self.capacity,
                                "seconds": round(self.seconds, 2)})
 
 
@@ -490,6 +498,17 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
     lr_hits = sorted({(des.pams[a].id, des.pams[b].id) for (a, b), (dist, _) in pairs_lr.items()
                       if dist < -CLEARANCE_TOLERANCE})
 
+    # ---- assembly: body gaps, body-bone clearance (bodies of their largest outer radius, as placed)
+    say("PAM bodies: gaps between them and clearance from bone")
+    gap_pairs, gap_pairs_lr = _body_gaps(des, capsule_cache, thr["body_gap_m"])
+    close_same = [p for p in gap_pairs if p["distance_m"] < thr["body_gap_m"] - CLEARANCE_TOLERANCE]
+    close_lr = [p for p in gap_pairs_lr if p["distance_m"] < thr["body_gap_m"] - CLEARANCE_TOLERANCE]
+    _body_bone_checks(des, bones, geo, capsule_cache, rows, right_side, opt.segment_step_m, thr)
+
+    # ---- joint capacity: every PAM at the design's pressure vs every muscle at activation 1
+    capacity = joint_capacity(pam_state["random"].torques, _human_columns(human, human_T["random"], names),
+                              audit_coordinates(rom), names, thr["capacity_pose_fraction"])
+
     # ---- bulk
     units = np.array([p.n_parallel for p in des.pams])
     rest = np.array([p.resting_length_m for p in des.pams])
@@ -535,6 +554,15 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
         "segments_over_2mm": sum(r["segments_over_limit"] for r in rows),
         "pam_pairs_intersecting": int(sum(1 for (a, b), (d, _) in pairs.items() if d < -CLEARANCE_TOLERANCE)),
         "pam_pairs_intersecting_left_right_gait": len(lr_hits),
+        "pam_body_pairs_closer_than_gap": len(close_same),
+        "pam_body_pairs_overlapping": sum(1 for p in gap_pairs if p["distance_m"] < -CLEARANCE_TOLERANCE),
+        "pam_body_pairs_closer_than_gap_left_right_gait": len(close_lr),
+        "pam_bodies_near_bone": count(lambda r: r["body_bone_clearance_m"] < thr["bone_gap_m"]),
+        "pam_bodies_into_bone": count(lambda r: r["body_bone_clearance_m"] < 0),
+        "body_bone_clearance_median_m": float(np.median([r["body_bone_clearance_m"] for r in rows])),
+        "body_bone_clearance_min_m": float(min(r["body_bone_clearance_m"] for r in rows)),
+        "capacity_directions_met": sum(1 for c in capacity if c["met"]),
+        "capacity_directions": len(capacity),
         "pams_on_one_segment": count(lambda r: r["on_one_segment"]),
         "pams_not_on_one_segment": count(lambda r: not r["on_one_segment"]),
         "pams_negative_tendon": count(lambda r: not r["tendon_ok"]),
@@ -569,7 +597,12 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
                "sweep_points": opt.n_sweep, "grid_points_per_axis": opt.n_grid,
                "segment_step_m": opt.segment_step_m, "geometry_random_poses": int(min(opt.n_geometry, len(q_rand))), "geometry_dir": str(bones.geometry_dir),
                "left_right_pairs_intersecting": [list(p) for p in lr_hits]}
-    res = AuditResult(des.name, des.path, rows, summary, criteria, samples, dict(thr), time.perf_counter() - t0)
+    assembly = {"body_radii_m": {str(d): body_radius(d) for d in sorted({p.diameter_mm for p in des.pams})},
+                "body_radius_source": body_radius_source(), "fitting_length_m": des.fitting_length_m,
+                "gap_m": thr["body_gap_m"], "bone_gap_m": thr["bone_gap_m"],
+                "pairs_closer_than_gap": close_same, "pairs_closer_than_gap_left_right_gait": close_lr}
+    res = AuditResult(des.name, des.path, rows, summary, criteria, samples, dict(thr), time.perf_counter() - t0,
+                      assembly=assembly, capacity=capacity)
     res.details = {"design": des, "q_rand": q_rand, "q_gait": q_gait, "t_gait": t_gait, "mounts": mounts,
                    "capsules": capsule_cache}
     return res
@@ -799,6 +832,66 @@ def _clearance(robot: PamRobot, des: Design, kin_state: dict, pam_state: dict, m
             for b in range(n):
                 pairs_lr[(a, b)] = closest(caps["gait"][a], caps["gait"][b + n], radius[a], radius[b])
     return pairs, pairs_lr, caps
+
+
+def _body_gaps(des: Design, caps: dict, gap: float) -> tuple[list[dict], list[dict]]:
+    """Every pair of PAM bodies of different actuators (:func:`pamkin.audit.assembly.pair_gap`, bodies of
+    their largest outer radius): same side (right) over every sample set of ``caps`` (as :func:`_clearance`
+    builds it), left–right over the gait. One dict per pair: ids, names, smallest distance [m], where (set,
+    sample) and the fractions of the samples closer than ``gap`` and overlapping."""
+    n = len(des.pams)
+    radius = [body_radius(p.diameter_mm) for p in des.pams]
+
+    def row(a: int, b: int, key_of: list) -> dict:
+        best = None
+        closer = overlap = samples = 0
+        for key, ca, cb in key_of:
+            g = pair_gap(ca, cb, radius[a % n], radius[b % n], gap, CLEARANCE_TOLERANCE)
+            m = len(ca[0][0]) if ca else 0
+            closer += g.closer_fraction * m
+            overlap += g.overlap_fraction * m
+            samples += m
+            if best is None or g.distance_m < best[0]:
+                best = (g.distance_m, key, g.sample)
+        return {"a": des.pams[a % n].id, "b": des.pams[b % n].id, "a_name": des.pams[a % n].name,
+                "b_name": des.pams[b % n].name, "distance_m": best[0], "set": best[1], "sample": best[2],
+                "closer_fraction": closer / samples if samples else 0.0,
+                "overlap_fraction": overlap / samples if samples else 0.0}
+
+    same = [row(a, b, [(k, caps[k][a], caps[k][b]) for k in caps]) for a in range(n) for b in range(a + 1, n)]
+    lr = ([row(a, b + n, [("gait", caps["gait"][a], caps["gait"][b + n])]) for a in range(n) for b in range(n)]
+          if "gait" in caps else [])
+    return same, lr
+
+
+def _body_bone_checks(des: Design, bones, geo: dict, caps: dict, rows: list[dict], right_side: list[str],
+                      step: float, thr: dict) -> None:
+    """Per PAM (right side) the clearance of its body from bone (:func:`pamkin.audit.assembly.bone_clearance`)
+    over the random poses (right-side bones) and the gait (every bone): the smallest [m] (negative: into
+    bone), the bone, where, and the fraction of the poses closer than the bone gap."""
+    gap = thr["bone_gap_m"]
+    for k, (pam, row) in enumerate(zip(des.pams, rows)):
+        r = body_radius(pam.diameter_mm)
+        best, bone, where, under, total = np.inf, None, None, 0, 0
+        for key, st in geo.items():
+            c, near = bone_clearance(bones, st, caps[key][k], r, step, reach=0.02,
+                                     bodies=right_side if key == "random" else None)
+            under += int(np.sum(c < gap))
+            total += len(c)
+            s = int(np.argmin(c)) if len(c) else -1
+            if s >= 0 and c[s] < best:
+                best, where = float(c[s]), (key, s)
+                bone = bones.bodies[near[s]] if near[s] >= 0 else None
+        row["body_radius_m"] = r
+        row["body_bone_clearance_m"] = best
+        row["body_bone_nearest"] = bone
+        row["body_bone_where"] = list(where) if where else None
+        row["body_bone_under_gap_fraction"] = under / total if total else 0.0
+
+
+def _human_columns(human: Model, T: np.ndarray, names: list[str]) -> np.ndarray:
+    """Human torques ``T`` (S, M, human coordinates) with their columns in the order of ``names``."""
+    return T[:, :, [human.coordinates.index(c) for c in names]]
 
 
 def _gait_fraction(des: Design, thr: dict, ik: str) -> tuple[float, dict[str, float]]:

@@ -69,10 +69,10 @@ def scorecard_text(res) -> str:
                      f"{1000 * r['max_segment_penetration_m']:>6.1f} {_one_segment(r):>5} "
                      f"{r['force_ratio']:>7.2f} {r['sensitivity_pct']:>6.1f}  "
                      f"{','.join(str(i) for i in r['intersects']) or '-'}")
-    lines += ["", f"{'criterion':42s} {'value':>10} {'limit':>14}  result"]
+    lines += ["", f"{'criterion':47s} {'value':>10} {'limit':>14}  result"]
     for c in res.criteria:
         verdict = {True: "pass", False: "FAIL", None: "-"}[c["passed"]]
-        lines.append(f"{c['name']:42s} {_fmt(c['value'], 4):>10} {_limit_text(c['limit']):>14}  {verdict}")
+        lines.append(f"{c['name']:47s} {_fmt(c['value'], 4):>10} {_limit_text(c['limit']):>14}  {verdict}")
     sm = res.summary
     lines += ["", "informational: "
               f"sweep NRMSE median {_fmt(sm['sweep_nrmse_median'])}, gait NRMSE median {_fmt(sm['gait_nrmse_median'])}, "
@@ -98,6 +98,10 @@ def scorecard_text(res) -> str:
               *([f"gait: frames within {thr['gait_residual_pct']:g} % per limiting coordinate: " +
                  ", ".join(f"{c} {100 * f:.0f} %" for c, f in sm["gait_limiting_coordinates"].items())]
                 if sm.get("gait_limiting_coordinates") else []),
+              *assembly_lines(res),
+              "",
+              *capacity_lines(res.capacity, thr.get("capacity_pose_fraction", 0.9)),
+              "",
               f"thresholds: {json.dumps(thr)}",
               f"{'PASSED' if res.passed else 'FAILED'}: {len(res.failed)} of "
               f"{sum(1 for c in res.criteria if c['passed'] is not None)} limits failed"
@@ -136,18 +140,79 @@ def force_level_lines(rows: list[dict], limit: float, worst_limit: float = float
             + (" (" + ", ".join(str(r["id"]) for r in level) + ")" if level else "")]
 
 
+def assembly_lines(res) -> list[str]:
+    """The scorecard's lines on the PAM bodies as placed: their radii and source, the pairs closer than the
+    gap (same side; left–right over the gait) and each body's clearance from bone. Empty for an audit that
+    predates these figures."""
+    a = getattr(res, "assembly", None) or {}
+    if not a:
+        return []
+    gap = 1000 * a["gap_m"]
+    radii = ", ".join(f"{d} mm: {1000 * r:.1f} mm" for d, r in a["body_radii_m"].items())
+    out = ["", f"PAM bodies as placed: capsules of the largest outer radius ({radii}; source: "
+           f"{a['body_radius_source']}) along the PAM length + both fittings ({1000 * a['fitting_length_m']:.0f} mm "
+           "each) from the anchored end of the mount segment"]
+
+    def pair(p: dict) -> str:
+        return (f"{p['a']}-{p['b']} {1000 * p['distance_m']:.1f} mm ({100 * p['closer_fraction']:.0f} % of poses "
+                f"< {gap:g} mm)")
+    for key, what in (("pairs_closer_than_gap", "same side"),
+                      ("pairs_closer_than_gap_left_right_gait", "left-right, walking trial")):
+        ps = sorted(a[key], key=lambda p: p["distance_m"])
+        out.append(f"body pairs closer than {gap:g} mm ({what}): {len(ps)}"
+                   + (": " + ", ".join(pair(p) for p in ps[:12]) + (" ..." if len(ps) > 12 else "") if ps else ""))
+    bone = [r for r in res.pams if r.get("body_bone_clearance_m") is not None]
+    if bone:
+        near = sorted(bone, key=lambda r: r["body_bone_clearance_m"])
+        out.append(f"body-bone clearance (< {1000 * a['bone_gap_m']:g} mm fails; negative: into bone) [mm]: "
+                   + ", ".join(f"{r['id']} {_fmt(1000 * r['body_bone_clearance_m'], 3)} ({r['body_bone_nearest'] or '-'})"
+                               for r in near))
+    return out
+
+
+def capacity_lines(rows: list[dict], fraction: float = 0.9) -> list[str]:
+    """The joint-capacity table: per coordinate and direction the robot's and human's median summed torque,
+    the median and least ratio and the share of poses where robot >= human (``*``: under ``fraction``)."""
+    if not rows:
+        return []
+    out = [f"joint capacity (every PAM at the design's pressure vs every human muscle at activation 1, summed per "
+           f"direction; random poses): {sum(r['met'] for r in rows)} of {len(rows)} coordinate-directions with "
+           f"robot >= human on >= {100 * fraction:g} % of the poses",
+           f"{'coordinate':18s} {'direction':20s} {'robot Nm':>9} {'human Nm':>9} {'ratio':>6} {'min':>6} {'robot>=human':>13}"]
+    for r in rows:
+        out.append(f"{r['coordinate']:18s} {r['direction'] + ' ' + r['motion']:20s} {_fmt(r['robot_median_Nm'], 4):>9} "
+                   f"{_fmt(r['human_median_Nm'], 4):>9} {_fmt(r['ratio_median'], 3):>6} {_fmt(r['ratio_min'], 2):>6} "
+                   f"{100 * r['fraction_robot_ge_human']:>11.1f} %{'' if r['met'] else '*'}")
+    return out
+
+
+def capacity_side_by_side(results: list, labels: list[str]) -> str:
+    """The joint-capacity figures of several designs in one table: per coordinate-direction the median ratio
+    robot ÷ human and the share of poses where robot >= human (``*``: not met). Empty where an audit has none."""
+    if not all(getattr(r, "capacity", None) for r in results):
+        return ""
+    lines = ["joint capacity: median ratio robot/human; share of poses robot >= human",
+             f"{'coordinate-direction':36s}" + "".join(f" {lab[:18]:>18}" for lab in labels)]
+    for k, row in enumerate(results[0].capacity):
+        cells = [f"{_fmt(r.capacity[k]['ratio_median'], 3)}; {100 * r.capacity[k]['fraction_robot_ge_human']:.0f} %"
+                 f"{' ' if r.capacity[k]['met'] else '*'}" for r in results]
+        lines.append(f"{row['coordinate'] + ' ' + row['direction'] + ' ' + row['motion']:36s}"
+                     + "".join(f" {c:>18}" for c in cells))
+    return "\n".join(lines) + "\n"
+
+
 def side_by_side(results: list, labels: list[str]) -> str:
     """Audit summaries of several designs in one table: one line per limit, a column per design
     (``*`` marks a failed limit)."""
-    head = f"{'criterion':42s} {'limit':>14}" + "".join(f" {lab[:16]:>16}" for lab in labels)
+    head = f"{'criterion':47s} {'limit':>14}" + "".join(f" {lab[:16]:>16}" for lab in labels)
     lines = [head]
     for k, c in enumerate(results[0].criteria):
         cells = []
         for r in results:
             cr = r.criteria[k]
             cells.append(f"{_fmt(cr['value'], 4)}{'*' if cr['passed'] is False else ' '}")
-        lines.append(f"{c['name']:42s} {_limit_text(c['limit']):>14}" + "".join(f" {x:>16}" for x in cells))
-    lines.append(f"{'limits failed (*)':42s} {'':>14}" + "".join(f" {len(r.failed):>15} " for r in results))
+        lines.append(f"{c['name']:47s} {_limit_text(c['limit']):>14}" + "".join(f" {x:>16}" for x in cells))
+    lines.append(f"{'limits failed (*)':47s} {'':>14}" + "".join(f" {len(r.failed):>15} " for r in results))
     return "\n".join(lines) + "\n"
 
 

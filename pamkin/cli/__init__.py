@@ -1,6 +1,6 @@
 """The ``pamkin`` command line: one entry point with subcommands, one module each
 (``pamkin.cli.<command>``: torques, robot (size, compare), optimize, export, visual (view, report),
-gait, audit, fit_paths; ``info`` and ``urdf`` live here).
+gait, audit, build, fit_paths; ``info`` and ``urdf`` live here).
 
 Run ``pamkin --help`` for the list and ``pamkin COMMAND --help`` for each command.
 """
@@ -129,6 +129,9 @@ def build_parser() -> argparse.ArgumentParser:
     from pamkin.cli import audit as cli_audit  # noqa: PLC0415
 
     cli_audit.add_parsers(sub)
+    from pamkin.cli import build as cli_build  # noqa: PLC0415
+
+    cli_build.add_parsers(sub)
     from pamkin.cli import fit_paths as cli_fit_paths  # noqa: PLC0415
 
     cli_fit_paths.add_parsers(sub)

@@ -245,7 +245,7 @@ def audit_side_by_side(out: Path, stream, audit: BackgroundAudit | None = None) 
     ``scorecard.txt``, ``audit_thesis.json``)."""
     import json  # noqa: PLC0415
 
-    from pamkin.audit.scorecard import scorecard_text, side_by_side  # noqa: PLC0415
+    from pamkin.audit.scorecard import capacity_side_by_side, scorecard_text, side_by_side  # noqa: PLC0415
     from pamkin.errors import PamkinError  # noqa: PLC0415
     from pamkin.outputs import write_file  # noqa: PLC0415
 
@@ -264,7 +264,8 @@ def audit_side_by_side(out: Path, stream, audit: BackgroundAudit | None = None) 
     gait_line = ("Gait frames limited by (fraction within the tolerance, this run): "
                  + ", ".join(f"{c} {100 * f:.0f} %" for c, f in lim.items()) + "\n") if lim else ""
     return ("\nAudit on held-out samples (pamkin audit --quick; full: pamkin audit " + str(out) +
-            " and pamkin audit thesis):\n" + side_by_side([thesis, res], ["thesis design", "this run"]) + gait_line)
+            " and pamkin audit thesis):\n" + side_by_side([thesis, res], ["thesis design", "this run"]) + gait_line
+            + capacity_side_by_side([thesis, res], ["thesis design", "this run"]))
 
 
 def _audit_inputs_key(options) -> str:

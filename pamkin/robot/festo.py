@@ -128,6 +128,7 @@ __all__ = [
     "measured_rest_length_range",
     "nominal_length_range",
     "outer_diameter",
+    "outer_diameter_source",
     "pam_mass",
     "transmission_mass",
 ]
@@ -466,6 +467,11 @@ def outer_diameter(diameter_mm: int) -> float:
     **assumption** (``festo_catalogue.assumed_outer_diameter_mm``)."""
     d = check_diameter(diameter_mm)
     return float(_raw()["festo_catalogue"]["assumed_outer_diameter_mm"][str(d)]) / 1000.0
+
+
+def outer_diameter_source() -> str:
+    """The ``source`` note of :func:`outer_diameter`'s table (what the figures rest on)."""
+    return str(_raw()["festo_catalogue"]["assumed_outer_diameter_mm"]["source"])
 
 
 # --------------------------------------------------------------------------- formulas (xp)
