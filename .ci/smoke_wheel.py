@@ -51,6 +51,10 @@ QUICK: dict[str, tuple[list[list[str]], tuple[int, ...]]] = {
     "urdf": ([["urdf", "--check", "--osim", "{osim}"]], (0,)),
     "gait": ([["gait", "--out", "gait"]], (0,)),
     "audit": ([["audit", "--quick", "--random", "40", "--ik", "none", "--no-gait-plan"]], (0, 1)),
+    "build": ([["build", "thesis", "--out", "build"], ["build", "run", "--out", "build-run"]], (0,)),
+    "fit-paths": ([["fit-paths", "{shared}/opensim-models/Models/Gait10dof18musc/gait10dof18musc.osim",
+                    "--out", "fitted.osim", "--max-order", "4", "--samples", "400", "--test-poses", "50",
+                    "--keep-unfitted", "--report", "fit-report"], ["info", "--osim", "fitted.osim"]], (0,)),
 }
 
 
