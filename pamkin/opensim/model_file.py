@@ -1017,7 +1017,11 @@ def _read_muscles(rd: _Reader, model_el: ET.Element, body_names: set[str],
             raise rd.err(f"force type <{f.tag}> has a path but is not supported (path classes: "
                          f"{', '.join(path_classes)})", f, unsupported=True)
         if gp is None:
-            raise rd.err("muscle without <GeometryPath>", f)
+            other = [c.tag for c in f if c.tag.endswith("Path")]
+            if other:
+                raise rd.err(f"path class <{other[0]}> is not supported (pamkin reads <GeometryPath> and "
+                             "<FunctionBasedPath>)", f, unsupported=True)
+            raise rd.err("muscle without <GeometryPath> or <FunctionBasedPath>", f)
         if f.tag == "Thelen2003Muscle" and f.find("ignore_tendon_compliance") is not None \
                 and rd.flag(f, "ignore_tendon_compliance", False):
             raise rd.err("ignore_tendon_compliance=true: OpenSim 4.6 refuses it for Thelen2003Muscle "

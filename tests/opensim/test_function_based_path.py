@@ -141,3 +141,15 @@ def test_bad_function_based_paths_name_the_element(fbp_file, tmp_path):
     p.write_text(text[:a] + "<length_function><Constant><value>0.3</value></Constant>" + text[b:])
     with pytest.raises(UnsupportedFeatureError, match=r"<Constant> of 2 coordinates is not supported"):
         load_osim_file(p)
+
+
+def test_unknown_path_class_is_named(fbp_file, tmp_path):
+    text = fbp_file.read_text()
+    i = text.index('name="hamstrings_r"')
+    a = text.index("<FunctionBasedPath", i)
+    b = text.index("</FunctionBasedPath>", a) + len("</FunctionBasedPath>")
+    p = tmp_path / "bad3.osim"
+    p.write_text(text[:a] + '<Scholz2015GeometryPath name="path"/>' + text[b:])
+    with pytest.raises(UnsupportedFeatureError, match=r"path class <Scholz2015GeometryPath> is not supported") as e:
+        load_osim_file(p)
+    assert 'name="hamstrings_r"' in str(e.value)
