@@ -129,6 +129,9 @@ def build_parser() -> argparse.ArgumentParser:
     from pamkin.cli import audit as cli_audit  # noqa: PLC0415
 
     cli_audit.add_parsers(sub)
+    from pamkin.cli import mjcf as cli_mjcf  # noqa: PLC0415
+
+    cli_mjcf.add_parsers(sub)
     return p
 
 
