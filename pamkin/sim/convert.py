@@ -25,6 +25,7 @@ from pamkin.robot.biped import PamRobot
 from pamkin.robot.rollers import path_wraps
 from pamkin.sim.joints import CoordinateMap
 from pamkin.sim.mjcf import MjcfSpec, mjcf_document, safe
+from pamkin.sim.pams import add_pam_actuators
 from pamkin.sim.tendons import FIT_POSES, FIT_SEED, PathChoice, PathSpec, choose
 
 #: Reference geometry: q (N, n_coordinates) -> (lengths (N, M) [m], moment arms (N, M, n_coordinates) [m]).
@@ -111,7 +112,8 @@ def convert_model(model: Model, name: str | None = None, geometry: str | os.Path
 
 def convert_robot(robot: PamRobot, name: str | None = None, fit_poses: int = FIT_POSES) -> Conversion:
     """Convert a PAM robot (both sides): the skeleton's bodies and joints, each PAM route a tendon named
-    after its column (``pam01_r`` ...), rollers as cylinder wrap geoms."""
+    after its column (``pam01_r`` ...) with a force actuator ``pam-<route>`` (:mod:`pamkin.sim.pams`), rollers as
+    cylinder wrap geoms."""
     t0 = time.perf_counter()
     paths = []
     for k, (nm, pts, rs) in enumerate(zip(robot.names, robot.routes, robot.rollers)):
@@ -124,8 +126,12 @@ def convert_robot(robot: PamRobot, name: str | None = None, fit_poses: int = FIT
             st = robot.evaluate(q)
         return st.lengths, st.moment_arms
 
-    return _convert(robot.model, name or robot.design.name, paths, reference, lambda q: reference(q)[0], None,
+    conv = _convert(robot.model, name or robot.design.name, paths, reference, lambda q: reference(q)[0], None,
                     fit_poses, t0)
+    add_pam_actuators(conv.spec, conv.paths)
+    conv.compile()
+    conv.seconds = time.perf_counter() - t0
+    return conv
 
 
 def _convert(model: Model, name: str, paths: list[PathSpec], reference: Reference, lengths, geometry,
