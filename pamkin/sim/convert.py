@@ -11,7 +11,7 @@ import os
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import mujoco
@@ -25,7 +25,6 @@ from pamkin.robot.biped import PamRobot
 from pamkin.robot.rollers import path_wraps
 from pamkin.sim.joints import CoordinateMap
 from pamkin.sim.mjcf import MjcfSpec, mjcf_document, safe
-from pamkin.sim.pams import add_pam_actuators
 from pamkin.sim.tendons import FIT_POSES, FIT_SEED, PathChoice, PathSpec, choose
 
 #: Reference geometry: q (N, n_coordinates) -> (lengths (N, M) [m], moment arms (N, M, n_coordinates) [m]).
@@ -84,8 +83,7 @@ class Conversion:
 
 
 def _without_meshes(spec: MjcfSpec) -> MjcfSpec:
-    return MjcfSpec(spec.name, spec.sites, spec.geoms, spec.tendons, spec.point_bodies, {}, spec.extra,
-                    spec.timestep)
+    return replace(spec, meshes={})
 
 
 def convert_model(model: Model, name: str | None = None, geometry: str | os.PathLike | None = None,
@@ -112,8 +110,7 @@ def convert_model(model: Model, name: str | None = None, geometry: str | os.Path
 
 def convert_robot(robot: PamRobot, name: str | None = None, fit_poses: int = FIT_POSES) -> Conversion:
     """Convert a PAM robot (both sides): the skeleton's bodies and joints, each PAM route a tendon named
-    after its column (``pam01_r`` ...) with a force actuator ``pam-<route>`` (:mod:`pamkin.sim.pams`), rollers as
-    cylinder wrap geoms."""
+    after its column (``pam01_r`` ...; forces: :mod:`pamkin.sim.pams`), rollers as cylinder wrap geoms."""
     t0 = time.perf_counter()
     paths = []
     for k, (nm, pts, rs) in enumerate(zip(robot.names, robot.routes, robot.rollers)):
@@ -126,12 +123,8 @@ def convert_robot(robot: PamRobot, name: str | None = None, fit_poses: int = FIT
             st = robot.evaluate(q)
         return st.lengths, st.moment_arms
 
-    conv = _convert(robot.model, name or robot.design.name, paths, reference, lambda q: reference(q)[0], None,
+    return _convert(robot.model, name or robot.design.name, paths, reference, lambda q: reference(q)[0], None,
                     fit_poses, t0)
-    add_pam_actuators(conv.spec, conv.paths)
-    conv.compile()
-    conv.seconds = time.perf_counter() - t0
-    return conv
 
 
 def _convert(model: Model, name: str, paths: list[PathSpec], reference: Reference, lengths, geometry,

@@ -69,6 +69,16 @@ class MjcfSpec:
     #: Extra XML sections appended under the root (actuators, contact, ...).
     extra: list[ET.Element] = field(default_factory=list)
     timestep: float = 0.001
+    #: Contact spheres: (body, position in the body [m], radius [m]).
+    contacts: list[tuple[str, tuple[float, float, float], float]] = field(default_factory=list)
+    #: Height of a floor plane (normal +Y) [m]; None: no floor.
+    floor: float | None = None
+    #: Weld this body to a mocap body ``harness`` (which the simulation moves); None: no harness.
+    harness: str | None = None
+    #: Limit every coordinate's joint to the coordinate's range (default: only clamped coordinates).
+    limit_all: bool = False
+    #: Viscous damping of the coordinates' joints [N·m·s/rad or N·s/m].
+    damping: float = 0.0
 
 
 def safe(name: str) -> str:
@@ -92,6 +102,12 @@ def mjcf_document(osim: OsimModel, cmap: CoordinateMap, spec: MjcfSpec) -> str:
                     ET.SubElement(asset, "mesh", name=name, file=file, scale=_nums(scale), inertia="shell")
     world = ET.SubElement(root, "worldbody")
     elements = {"world": world}
+    if spec.floor is not None:                     # a plane's normal is its z: turned onto +Y
+        ET.SubElement(world, "geom", name="floor", type="plane", size="5 5 0.1", pos=_nums((0, spec.floor, 0)),
+                      quat=_nums((np.sqrt(0.5), -np.sqrt(0.5), 0, 0)), friction="1 0.005 0.0001",
+                      rgba="0.8 0.8 0.8 1")
+    if spec.harness is not None:
+        ET.SubElement(world, "body", name="harness", mocap="true")
     mass = {b.name: b for b in osim.bodies}
     pending = list(cmap.bodies)
     while pending:
@@ -115,7 +131,7 @@ def mjcf_document(osim: OsimModel, cmap: CoordinateMap, spec: MjcfSpec) -> str:
         elements[name] = el
     for mj in cmap.joints:
         ET.SubElement(elements[mj.body], "joint", name=safe(mj.name), type=mj.kind, pos=_nums(mj.pos),
-                      axis=_nums(mj.axis), **_limits(cmap, mj))
+                      axis=_nums(mj.axis), **_limits(cmap, mj, spec))
     for body, items in spec.meshes.items():
         for name, _, R, p, _ in items:
             ET.SubElement(elements[body], "geom", type="mesh", mesh=name, pos=_nums(p), quat=_quat(R),
@@ -124,12 +140,18 @@ def mjcf_document(osim: OsimModel, cmap: CoordinateMap, spec: MjcfSpec) -> str:
         ET.SubElement(elements["world" if g.body == GROUND else g.body], "geom", name=safe(g.name), type=g.kind,
                       size=_nums(g.size), pos=_nums(g.p), quat=_quat(g.R), contype="0", conaffinity="0",
                       group="3", rgba="0.3 0.5 0.9 0.3")
+    for n, (body, pos, radius) in enumerate(spec.contacts):
+        ET.SubElement(elements[body], "geom", name=f"contact{n}-{safe(body)}", type="sphere", size=_num(radius),
+                      pos=_nums(pos), rgba="0.9 0.3 0.2 1", group="0", friction="1 0.005 0.0001")
     for s in spec.sites:
         ET.SubElement(elements["world" if s.body == GROUND else s.body], "site", name=safe(s.name),
                       pos=_nums(s.pos), size="0.004", group="2")
     ties = [mj for mj in cmap.joints if not mj.primary]
-    if ties:
+    if ties or spec.harness is not None:
         eq = ET.SubElement(root, "equality")
+        if spec.harness is not None:
+            ET.SubElement(eq, "weld", name="harness", body1="harness", body2=safe(spec.harness),
+                          relpose="0 0 0 1 0 0 0", solref="0.02 1")
         for mj in ties:
             prim = cmap.joints[cmap.primary[mj.coordinate][0]]
             ET.SubElement(eq, "joint", name=safe(f"tie_{mj.name}"), joint1=safe(mj.name), joint2=safe(prim.name),
@@ -161,15 +183,16 @@ def _inertial(el: ET.Element, body) -> None:
     ET.SubElement(el, "inertial", pos=_nums(body.mass_center), mass=_num(body.mass), fullinertia=_nums(I))
 
 
-def _limits(cmap: CoordinateMap, mj) -> dict[str, str]:
+def _limits(cmap: CoordinateMap, mj, spec: MjcfSpec) -> dict[str, str]:
     if not mj.primary:
         return {}
     coord = cmap.osim.coordinate(mj.coordinate)
-    if not coord.clamped:
-        return {}
+    extra = {"damping": _num(spec.damping)} if spec.damping else {}
+    if not (coord.clamped or spec.limit_all) or mj.coordinate.startswith("pelvis_"):
+        return extra
     _, a, b = cmap.primary[mj.coordinate]
     lo, hi = sorted((a * coord.range[0] + b, a * coord.range[1] + b))
-    return {"range": _nums((lo, hi))}
+    return {"range": _nums((lo, hi)), **extra}
 
 
 def _quat(R: np.ndarray) -> str:

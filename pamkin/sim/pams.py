@@ -1,13 +1,15 @@
 """PAM actuators of a converted robot: pamkin's Festo force law at MuJoCo's tendon lengths, first-order pressure
 dynamics.
 
-Each PAM route (a tendon named after its column, ``pam01_r`` ...) has a MuJoCo ``<general>`` actuator
-``pam-<route>`` on its tendon with unit gain and no bias: its control is the force. Before each step
-:meth:`PamDrive.apply` sets the controls to −T, T the route's tension from :func:`pamkin.robot.festo.force`
-(the design's force model) at the tendon's current length (PAM length = (route − tendon)/transmission −
-fittings, as :meth:`pamkin.robot.biped.PamRobot.evaluate`) and the current pressure, × parallel count ÷
-transmission. MuJoCo applies it through ``actuator_moment`` (the tendon Jacobian): the generalized forces are
-−Jᵀ·T, so about a coordinate the torque is T × moment arm, pamkin's PAM torque.
+Each PAM route is a tendon named after its column (``pam01_r`` ...). At every step :meth:`PamDrive.apply` takes
+the tendons' current lengths (``ten_length``), computes each route's tension T with
+:func:`pamkin.robot.festo.force` (the design's force model; PAM length = (route − tendon)/transmission −
+fittings, as :meth:`pamkin.robot.biped.PamRobot.evaluate`; × parallel count ÷ transmission) at the current
+pressure, and applies the generalized forces −Jᵀ·T (J = MuJoCo's tendon Jacobian ``ten_J``) gathered onto each
+independent coordinate's joint: τ_c = −Σ_j (Jᵀ·T)_j ∂qpos_j/∂q_c, through the joints tied to it (knee
+translations, moving path points). About a coordinate the torque is T × moment arm, pamkin's PAM torque. Applying
+it to the coordinate's own joint (``qfrc_applied``) rather than to the tied joints keeps the light bodies of moving
+path points free of the PAM forces (a tied joint's force would have to pass through its soft equality).
 
 Pressures follow the commands with a first-order lag (valve and volume): dp/dt = (u − p)/τ, u clipped to
 [0, :data:`P_MAX`]; :meth:`PamDrive.advance` integrates it exactly over a step, p += (1 − e^(−dt/τ))(u − p).
@@ -16,34 +18,20 @@ Pressures follow the commands with a first-order lag (valve and volume): dp/dt =
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
-
 import mujoco
 import numpy as np
 
 from pamkin.robot import festo
 from pamkin.robot.biped import PamRobot
 from pamkin.robot.design import pam_length
-from pamkin.sim.mjcf import MjcfSpec, safe
+from pamkin.sim.geometry import tendon_jacobian_pattern
+from pamkin.sim.joints import CoordinateMap
+from pamkin.sim.mjcf import safe
 
 #: Pressure limit of the valves [Pa] (Festo DMSP: 620 kPa).
 P_MAX = 620e3
 #: Default time constant of the pressure lag [s] (a 10 mm PAM on a proportional valve fills in ~0.1 s).
 TAU = 0.05
-
-
-def actuator_name(route: str) -> str:
-    """Name of the actuator of PAM route ``route``."""
-    return safe(f"pam-{route}")
-
-
-def add_pam_actuators(spec: MjcfSpec, routes: list[str]) -> None:
-    """Add one force actuator (unit gain, no bias, unlimited control) per route tendon to ``spec``."""
-    act = ET.Element("actuator")
-    for r in routes:
-        ET.SubElement(act, "general", name=actuator_name(r), tendon=safe(r), gainprm="1", biasprm="0 0 0",
-                      ctrllimited="false")
-    spec.extra.append(act)
 
 
 class PamDrive:
@@ -52,6 +40,7 @@ class PamDrive:
     Args:
         robot: The pamkin robot (its PAM parameters and force model).
         model: The MuJoCo model (from :func:`pamkin.sim.convert.convert_robot`).
+        cmap: Its coordinate map (``Conversion.cmap``).
         tau: Time constant of the pressure lag [s].
         p_max: Pressure limit [Pa] (≤ 620 kPa).
 
@@ -60,17 +49,29 @@ class PamDrive:
         command: (n,) commanded pressures [Pa] (clipped to [0, p_max] when applied).
     """
 
-    def __init__(self, robot: PamRobot, model: mujoco.MjModel, tau: float = TAU, p_max: float = P_MAX) -> None:
+    def __init__(self, robot: PamRobot, model: mujoco.MjModel, cmap: CoordinateMap, tau: float = TAU,
+                 p_max: float = P_MAX) -> None:
         if not tau > 0:
             raise ValueError(f"tau must be > 0 s, got {tau}")
         if not 0 < p_max <= P_MAX:
             raise ValueError(f"p_max must be in (0, {P_MAX:g}] Pa, got {p_max}")
         self.robot, self.model, self.tau, self.p_max = robot, model, float(tau), float(p_max)
         self.tendons = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, safe(n)) for n in robot.names])
-        self.actuators = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, actuator_name(n))
-                                   for n in robot.names])
-        if (self.tendons < 0).any() or (self.actuators < 0).any():
-            raise ValueError("the MuJoCo model lacks PAM tendons or actuators (convert it with convert_robot)")
+        if (self.tendons < 0).any():
+            raise ValueError("the MuJoCo model lacks PAM tendons (convert it with convert_robot)")
+        rows, self._cols = tendon_jacobian_pattern(model)
+        slot = np.full(model.ntendon, -1)
+        slot[self.tendons] = np.arange(len(self.tendons))
+        self._rows = slot[rows]                  # PAM column of each ten_J entry (-1: another tendon)
+        self._nnz = len(rows)
+        jid = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, safe(j.name)) for j in cmap.joints]
+        coords = list(cmap.primary)
+        self.coordinates = coords
+        self._prim_qadr = np.array([model.jnt_qposadr[jid[cmap.primary[c][0]]] for c in coords])
+        self._prim_dof = np.array([model.jnt_dofadr[jid[cmap.primary[c][0]]] for c in coords])
+        self._a = np.array([cmap.primary[c][1] for c in coords])
+        self._tied = [(model.jnt_dofadr[jid[k]], coords.index(j.coordinate), np.polynomial.polynomial.polyder(j.poly))
+                      for k, j in enumerate(cmap.joints) if not j.primary]
         self.pressure = np.zeros(len(robot.names))
         self.command = np.zeros(len(robot.names))
         self._groups = [(np.nonzero(robot.diameter == d)[0], int(d)) for d in np.unique(robot.diameter)]
@@ -89,11 +90,25 @@ class PamDrive:
             F[cols] = festo.force(strain[cols], r.rest[cols], pressure[cols], d, model=r.design.force_model)
         return F * self._scale
 
+    def generalized_forces(self, data: mujoco.MjData, T: np.ndarray) -> np.ndarray:
+        """(n_coordinates,) torques of tensions T about the independent coordinates (:attr:`coordinates`), from
+        the current ``ten_J`` [N·m or N]."""
+        keep = self._rows >= 0
+        f = -np.bincount(self._cols[keep], weights=data.ten_J[:self._nnz][keep] * T[self._rows[keep]],
+                         minlength=self.model.nv)
+        tau = f[self._prim_dof] * self._a
+        x = data.qpos[self._prim_qadr]
+        for dof, c, d in self._tied:
+            tau[c] += f[dof] * self._a[c] * np.polynomial.polynomial.polyval(x[c], d)
+        return tau
+
     def apply(self, data: mujoco.MjData) -> np.ndarray:
-        """Set the actuators' controls to the PAMs' forces at the current tendon lengths (``ten_length`` of
-        the last position stage) and pressures; returns the tensions [N]."""
+        """Apply the PAMs' forces at the current tendon lengths and Jacobian (of the last position stage) and
+        pressures as ``qfrc_applied`` on the coordinates' joints; returns the tensions [N]."""
         T = self.tension(data.ten_length[self.tendons], self.pressure)
-        data.ctrl[self.actuators] = -T
+        tau = self.generalized_forces(data, T)
+        data.qfrc_applied[:] = 0.0
+        data.qfrc_applied[self._prim_dof] = tau / self._a
         return T
 
     def advance(self, dt: float) -> None:
