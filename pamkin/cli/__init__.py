@@ -132,6 +132,9 @@ def build_parser() -> argparse.ArgumentParser:
     from pamkin.cli import mjcf as cli_mjcf  # noqa: PLC0415
 
     cli_mjcf.add_parsers(sub)
+    from pamkin.cli import simulate as cli_simulate  # noqa: PLC0415
+
+    cli_simulate.add_parsers(sub)
     return p
 
 

@@ -102,6 +102,23 @@ class PamDrive:
             tau[c] += f[dof] * self._a[c] * np.polynomial.polynomial.polyval(x[c], d)
         return tau
 
+    def moment_arms(self, data: mujoco.MjData) -> np.ndarray:
+        """(n_pams, n_coordinates) moment arms −dL/dq about the independent coordinates (:attr:`coordinates`) at
+        the current pose (``ten_J`` of the last position stage) [m or m/m]."""
+        keep = self._rows >= 0
+        J = np.zeros((len(self.tendons), self.model.nv))
+        J[self._rows[keep], self._cols[keep]] = data.ten_J[:self._nnz][keep]
+        R = -J[:, self._prim_dof] * self._a
+        x = data.qpos[self._prim_qadr]
+        for dof, c, d in self._tied:
+            R[:, c] -= J[:, dof] * self._a[c] * np.polynomial.polynomial.polyval(x[c], d)
+        return R
+
+    def pressure_gain(self, data: mujoco.MjData, dp: float = 1e3) -> np.ndarray:
+        """(n_pams,) ∂T/∂p at the current lengths and pressures [N/Pa] (forward difference of ``dp`` Pa)."""
+        L = data.ten_length[self.tendons]
+        return (self.tension(L, self.pressure + dp) - self.tension(L, self.pressure)) / dp
+
     def apply(self, data: mujoco.MjData) -> np.ndarray:
         """Apply the PAMs' forces at the current tendon lengths and Jacobian (of the last position stage) and
         pressures as ``qfrc_applied`` on the coordinates' joints; returns the tensions [N]."""

@@ -98,9 +98,9 @@ class Scene:
 
 
 def build_scene(conv: Conversion, robot: PamRobot, floor_poses: np.ndarray, harness: bool = False,
-                tau: float = TAU, timestep: float = 0.001) -> Scene:
+                tau: float = TAU, timestep: float = 0.001, floor_offset: float = 0.0) -> Scene:
     """The scene of a converted robot: foot contacts, a floor touching the lowest foot sphere over
-    ``floor_poses`` (N, n_coordinates), a pelvis harness when asked."""
+    ``floor_poses`` (N, n_coordinates) lowered by ``floor_offset`` [m], a pelvis harness when asked."""
     spec = replace(conv.spec, contacts=foot_contacts(), floor=None, harness="pelvis" if harness else None,
                    meshes={}, timestep=timestep, limit_all=True, damping=DAMPING)
     model = mujoco.MjModel.from_xml_string(mjcf_document(conv.model.osim, conv.cmap, spec))
@@ -113,6 +113,7 @@ def build_scene(conv: Conversion, robot: PamRobot, floor_poses: np.ndarray, harn
         data.qpos[qadr] = qpos
         mujoco.mj_kinematics(model, data)
         low = min(low, float(np.min(data.geom_xpos[geoms, 1] - model.geom_size[geoms, 0])))
+    low -= floor_offset
     spec.floor = low
     model = mujoco.MjModel.from_xml_string(mjcf_document(conv.model.osim, conv.cmap, spec))
     data = mujoco.MjData(model)
