@@ -25,10 +25,11 @@ def add_parsers(sub) -> None:
     s.add_argument("--pressure", type=float, default=300.0,
                    help="stand: feedforward pressure of every PAM [kPa] (default 300)")
     s.add_argument("--tau", type=float, default=None, help="pressure time constant [s] (default 0.05)")
-    s.add_argument("--kp", type=float, default=None, help="PD stiffness [N·m/rad] before per-joint scaling (default 400)")
-    s.add_argument("--kd", type=float, default=None, help="PD damping [N·m·s/rad] before scaling (default 20)")
+    s.add_argument("--kp", type=float, default=None, help="PD stiffness [N·m/rad] before per-joint scaling (default 800)")
+    s.add_argument("--kd", type=float, default=None, help="PD damping [N·m·s/rad] before scaling (default 40)")
     s.add_argument("--floor-offset", type=float, default=0.0,
-                   help="walk: floor this far below the lowest foot point of the trial [m] (default 0)")
+                   help="walk: floor this far below the lowest foot point of the trial [m], negative: above "
+                        "(default 0)")
     s.set_defaults(func=cmd_simulate)
 
 
@@ -48,8 +49,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         v = getattr(args, name)
         if v is not None and not 0 <= v <= 1e5:
             raise ParameterError(f"--{name} must be in [0, 1e5], got {v}")
-    if not 0 <= args.floor_offset <= 0.5:
-        raise ParameterError(f"--floor-offset must be in [0, 0.5] m, got {args.floor_offset}")
+    if not -0.1 <= args.floor_offset <= 0.5:
+        raise ParameterError(f"--floor-offset must be in [-0.1, 0.5] m, got {args.floor_offset}")
     check_output_folder(args.out, args.force)              # before any work
     from pamkin.robot.biped import design_robot  # noqa: PLC0415
     from pamkin.sim.convert import convert_robot  # noqa: PLC0415

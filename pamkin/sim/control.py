@@ -7,10 +7,11 @@ Every control period the commanded pressures are ``u = clip(p_ff(t) + Δp, 0, p_
   linearly in time; for standing, constant);
 * ``τ_fb = Kp·(q_ref − q) + Kd·(q̇_ref − q̇)``: a PD torque on the controlled coordinates (the 17 non-pelvis
   ones), gains :data:`KP` [N·m/rad] and :data:`KD` [N·m·s/rad] scaled per coordinate by :data:`GAIN_SCALE`;
-* ``Δp = B·R·(Rᵀ·B²·R + λ·I)⁻¹·τ_fb``: the least-norm pressure change whose extra torque is τ_fb (damped least
-  squares), R the PAMs' moment arms about those coordinates and B = diag(∂T/∂p) their force gains, both at the
-  current state (MuJoCo's ``ten_J``; :meth:`pamkin.sim.pams.PamDrive.moment_arms`, ``pressure_gain``),
-  λ = :data:`DAMPING_LS` × mean diagonal of Rᵀ·B²·R.
+* Δp minimises ``|Rᵀ·B·Δp − τ_fb|² + λ·|Δp|²`` subject to ``0 ≤ p_ff + Δp ≤ p_max`` (bounded damped least squares,
+  DAQP through qpsolvers): the pressure change whose extra torque is τ_fb, with antagonists relaxed only down
+  to zero pressure. R are the PAMs' moment arms about the controlled coordinates and B = diag(∂T/∂p) their force
+  gains, both at the current state (MuJoCo's ``ten_J``; :meth:`pamkin.sim.pams.PamDrive.moment_arms`,
+  ``pressure_gain``); λ = :data:`DAMPING_LS` × the mean of diag(M·Mᵀ) in units of p_max.
 """
 
 from __future__ import annotations
@@ -18,10 +19,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from qpsolvers import solve_ls
 
 #: PD gains of the feedback torque [N·m/rad, N·m·s/rad].
-KP = 400.0
-KD = 20.0
+KP = 800.0
+KD = 40.0
 #: Per-coordinate scaling of the gains (by name prefix; others 1).
 GAIN_SCALE = {"lumbar": 2.0, "hip": 1.0, "knee": 0.7, "ankle": 0.6, "subtalar": 0.2, "mtp": 0.1}
 #: Relative regularisation of the damped least squares.
@@ -52,17 +54,22 @@ class PressureController:
         cols = np.array([drive.coordinates.index(c) for c in coordinates])
         return cls(list(coordinates), cols, kp * scale, kd * scale, drive.p_max)
 
-    def feedback(self, drive, data, q_err: np.ndarray, qd_err: np.ndarray) -> np.ndarray:
-        """(n_pams,) pressure change [Pa] for position and speed errors (reference − actual) of the
-        controlled coordinates."""
+    def feedback(self, drive, data, q_err: np.ndarray, qd_err: np.ndarray, p_ff: np.ndarray) -> np.ndarray:
+        """(n_pams,) pressure change Δp [Pa] for position and speed errors (reference − actual) of the controlled
+        coordinates: the bounded damped least squares of the module docstring (0 ≤ p_ff + Δp ≤ p_max)."""
         tau = self.kp * q_err + self.kd * qd_err
         R = drive.moment_arms(data)[:, self.columns]
         B = np.maximum(drive.pressure_gain(data), 0.0)
-        BR = B[:, None] * R
-        A = BR.T @ BR
-        lam = DAMPING_LS * max(np.trace(A) / len(A), 1e-12)
-        return BR @ np.linalg.solve(A + lam * np.eye(len(A)), tau)
+        M = (B[:, None] * R).T * self.p_max                  # torque per unit of Δp / p_max
+        scale = np.trace(M @ M.T) / M.shape[1]
+        if not scale > 0:                                     # no PAM can act (all slack)
+            return np.zeros(len(B))
+        A = np.vstack([M, np.sqrt(DAMPING_LS * scale) * np.eye(M.shape[1])])
+        b = np.concatenate([tau, np.zeros(M.shape[1])])
+        x = solve_ls(A, b, lb=-p_ff / self.p_max, ub=1.0 - p_ff / self.p_max, solver="daqp")
+        return np.zeros(len(B)) if x is None else x * self.p_max
 
     def command(self, drive, data, p_ff: np.ndarray, q_err: np.ndarray, qd_err: np.ndarray) -> np.ndarray:
         """Clipped command [Pa]: feedforward plus :meth:`feedback`."""
-        return np.clip(p_ff + self.feedback(drive, data, q_err, qd_err), 0.0, self.p_max)
+        p_ff = np.clip(p_ff, 0.0, self.p_max)
+        return np.clip(p_ff + self.feedback(drive, data, q_err, qd_err, p_ff), 0.0, self.p_max)

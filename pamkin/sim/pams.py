@@ -70,11 +70,18 @@ class PamDrive:
         self._prim_qadr = np.array([model.jnt_qposadr[jid[cmap.primary[c][0]]] for c in coords])
         self._prim_dof = np.array([model.jnt_dofadr[jid[cmap.primary[c][0]]] for c in coords])
         self._a = np.array([cmap.primary[c][1] for c in coords])
-        self._tied = [(model.jnt_dofadr[jid[k]], coords.index(j.coordinate), np.polynomial.polynomial.polyder(j.poly))
-                      for k, j in enumerate(cmap.joints) if not j.primary]
+        tied = [(model.jnt_dofadr[jid[k]], coords.index(j.coordinate), np.polynomial.polynomial.polyder(j.poly))
+                for k, j in enumerate(cmap.joints) if not j.primary]
+        self._tied_dof = np.array([t[0] for t in tied], dtype=int)
+        self._tied_coord = np.array([t[1] for t in tied], dtype=int)
+        self._tied_der = np.array([t[2] for t in tied]).reshape(len(tied), -1)
         self.pressure = np.zeros(len(robot.names))
         self.command = np.zeros(len(robot.names))
         self._groups = [(np.nonzero(robot.diameter == d)[0], int(d)) for d in np.unique(robot.diameter)]
+        model_name = robot.design.force_model
+        self._kmax = np.zeros(len(robot.names))           # constant per PAM: computed once
+        for cols, d in self._groups:
+            self._kmax[cols] = festo.kmax(robot.rest[cols], d, model=model_name)
         self._trans = [(np.nonzero(robot.transmission == k)[0], int(k)) for k in np.unique(robot.transmission)]
         self._scale = robot.n_parallel / robot.transmission
 
@@ -87,7 +94,8 @@ class PamDrive:
         strain = (r.rest - pam) / r.rest
         F = np.empty_like(lengths)
         for cols, d in self._groups:
-            F[cols] = festo.force(strain[cols], r.rest[cols], pressure[cols], d, model=r.design.force_model)
+            F[cols] = festo.force(strain[cols], r.rest[cols], pressure[cols], d, model=r.design.force_model,
+                                  kmax=self._kmax[cols])
         return F * self._scale
 
     def generalized_forces(self, data: mujoco.MjData, T: np.ndarray) -> np.ndarray:
@@ -97,10 +105,17 @@ class PamDrive:
         f = -np.bincount(self._cols[keep], weights=data.ten_J[:self._nnz][keep] * T[self._rows[keep]],
                          minlength=self.model.nv)
         tau = f[self._prim_dof] * self._a
-        x = data.qpos[self._prim_qadr]
-        for dof, c, d in self._tied:
-            tau[c] += f[dof] * self._a[c] * np.polynomial.polynomial.polyval(x[c], d)
+        g = self._tied_slopes(data)
+        np.add.at(tau, self._tied_coord, f[self._tied_dof] * g)
         return tau
+
+    def _tied_slopes(self, data: mujoco.MjData) -> np.ndarray:
+        """∂qpos/∂q of every tied joint at the current pose (a · P'(x), Horner)."""
+        x = data.qpos[self._prim_qadr][self._tied_coord]
+        out = np.zeros(len(x))
+        for c in self._tied_der.T[::-1]:
+            out = out * x + c
+        return out * self._a[self._tied_coord]
 
     def moment_arms(self, data: mujoco.MjData) -> np.ndarray:
         """(n_pams, n_coordinates) moment arms −dL/dq about the independent coordinates (:attr:`coordinates`) at
@@ -109,9 +124,9 @@ class PamDrive:
         J = np.zeros((len(self.tendons), self.model.nv))
         J[self._rows[keep], self._cols[keep]] = data.ten_J[:self._nnz][keep]
         R = -J[:, self._prim_dof] * self._a
-        x = data.qpos[self._prim_qadr]
-        for dof, c, d in self._tied:
-            R[:, c] -= J[:, dof] * self._a[c] * np.polynomial.polynomial.polyval(x[c], d)
+        g = self._tied_slopes(data)
+        for k, (dof, c) in enumerate(zip(self._tied_dof, self._tied_coord)):
+            R[:, c] -= J[:, dof] * g[k]
         return R
 
     def pressure_gain(self, data: mujoco.MjData, dp: float = 1e3) -> np.ndarray:

@@ -97,10 +97,12 @@ class Scene:
         return -d.efc_force[rows[:3]] if len(rows) else np.zeros(3)
 
 
-def build_scene(conv: Conversion, robot: PamRobot, floor_poses: np.ndarray, harness: bool = False,
-                tau: float = TAU, timestep: float = 0.001, floor_offset: float = 0.0) -> Scene:
-    """The scene of a converted robot: foot contacts, a floor touching the lowest foot sphere over
-    ``floor_poses`` (N, n_coordinates) lowered by ``floor_offset`` [m], a pelvis harness when asked."""
+def build_scene(conv: Conversion, robot: PamRobot, floor_poses: np.ndarray | None, harness: bool = False,
+                tau: float = TAU, timestep: float = 0.001, floor_offset: float = 0.0,
+                floor: float | None = None) -> Scene:
+    """The scene of a converted robot: foot contacts, a floor at height ``floor`` [m] or, without it, touching
+    the lowest foot sphere over ``floor_poses`` (N, n_coordinates), lowered by ``floor_offset`` [m]; a pelvis
+    harness when asked."""
     spec = replace(conv.spec, contacts=foot_contacts(), floor=None, harness="pelvis" if harness else None,
                    meshes={}, timestep=timestep, limit_all=True, damping=DAMPING)
     model = mujoco.MjModel.from_xml_string(mjcf_document(conv.model.osim, conv.cmap, spec))
@@ -108,8 +110,8 @@ def build_scene(conv: Conversion, robot: PamRobot, floor_poses: np.ndarray, harn
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, safe(j.name)) for j in conv.cmap.joints]
     qadr, dadr = model.jnt_qposadr[ids], model.jnt_dofadr[ids]
     geoms = [g for g in range(model.ngeom) if model.geom(g).name.startswith("contact")]
-    low = np.inf
-    for qpos in conv.cmap.qpos(np.atleast_2d(floor_poses)):
+    low = np.inf if floor is None else float(floor)
+    for qpos in conv.cmap.qpos(np.atleast_2d(floor_poses)) if floor is None else ():
         data.qpos[qadr] = qpos
         mujoco.mj_kinematics(model, data)
         low = min(low, float(np.min(data.geom_xpos[geoms, 1] - model.geom_size[geoms, 0])))

@@ -130,7 +130,12 @@ def _run(scene: Scene, ctrl: PressureController, duration: float, reference, fee
 
 def harness_walk(robot: PamRobot, conv: Conversion, tau: float = TAU, kp: float | None = None,
                  kd: float | None = None, floor_offset: float = 0.0, **trial) -> SimResult:
-    """Walk on a harness along the trial (``trial``: keyword arguments of :func:`pamkin.gait.plan.load_trial`)."""
+    """Walk on a harness along the trial (``trial``: keyword arguments of :func:`pamkin.gait.plan.load_trial`).
+
+    The floor touches the lowest foot sphere over the trial's frames, lowered by ``floor_offset`` [m] (negative:
+    raised). The trial's own floor (its centres of pressure, y = −0.0075 m) is not used: the IK angles belong to
+    the scaled subject, whose pelvis rides higher than the generic skeleton's legs reach (the generic feet stay
+    8–9 cm above that floor over the whole trial)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RangeWarning)
         tr = load_trial(robot.model, **trial)
@@ -175,7 +180,8 @@ def harness_walk(robot: PamRobot, conv: Conversion, tau: float = TAU, kp: float 
         "harness_mean_vertical_load_fraction": float(np.mean(res.harness[:, 1]) / weight),
         "harness_peak_vertical_load_fraction": float(np.max(res.harness[:, 1]) / weight),
         "plan_feasible_frame_fraction": float(plan.feasible_frame_fraction),
-        "pressure_time_constant_s": tau, "kp": float(ctrl.kp.max()), "kd": float(ctrl.kd.max())}
+        "pressure_time_constant_s": tau, "kp": float(ctrl.kp.max()), "kd": float(ctrl.kd.max()),
+        "floor_m": scene.floor}
     return res
 
 
@@ -198,10 +204,12 @@ def stand(robot: PamRobot, conv: Conversion, duration: float = 10.0, pressure: f
     res = _run(scene, ctrl, duration, lambda t: ref, lambda t: ff, None, "stand")
     p = res.pelvis
     drift = np.linalg.norm((p - p[0])[:, [0, 2]], axis=1)
+    fallen = np.nonzero(p[0, 1] - p[:, 1] >= FALL_DROP)[0]
     res.summary = _tracking_summary(res) | {
         "duration_s": duration, "feedforward_pressure_Pa": pressure,
         "pelvis_horizontal_drift_max_m": float(drift.max()), "pelvis_drop_max_m": float(np.max(p[0, 1] - p[:, 1])),
-        "stayed_up": bool(np.max(p[0, 1] - p[:, 1]) < FALL_DROP), "pressure_time_constant_s": tau,
+        "stayed_up": not len(fallen), "fell_at_s": float(res.times[fallen[0]]) if len(fallen) else None,
+        "pressure_time_constant_s": tau,
         "kp": float(ctrl.kp.max()), "kd": float(ctrl.kd.max())}
     return res
 
