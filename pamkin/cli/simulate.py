@@ -22,8 +22,9 @@ def add_parsers(sub) -> None:
     s.add_argument("--out", metavar="DIR", required=True, help="run folder (refused if it exists unless --force)")
     s.add_argument("--force", action="store_true", help="replace an existing run folder whole (default: refuse)")
     s.add_argument("--duration", type=float, default=10.0, help="stand: simulated time [s] (default 10)")
-    s.add_argument("--pressure", type=float, default=300.0,
-                   help="stand: feedforward pressure of every PAM [kPa] (default 300)")
+    s.add_argument("--pressure", type=float, default=None,
+                   help="stand: a constant feedforward pressure of every PAM [kPa] (default: the pressures "
+                        "holding the pose statically, each foot carrying half the weight)")
     s.add_argument("--tau", type=float, default=None, help="pressure time constant [s] (default 0.05)")
     s.add_argument("--kp", type=float, default=None, help="PD stiffness [N·m/rad] before per-joint scaling (default 800)")
     s.add_argument("--kd", type=float, default=None, help="PD damping [N·m·s/rad] before scaling (default 40)")
@@ -43,7 +44,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         raise ParameterError(f"--tau must be in (0, 1] s, got {tau}")
     if not 0 < args.duration <= 120:
         raise ParameterError(f"--duration must be in (0, 120] s, got {args.duration}")
-    if not 0 <= args.pressure <= pams.P_MAX / 1e3:
+    if args.pressure is not None and not 0 <= args.pressure <= pams.P_MAX / 1e3:
         raise ParameterError(f"--pressure must be in [0, 620] kPa, got {args.pressure}")
     for name in ("kp", "kd"):
         v = getattr(args, name)
@@ -62,8 +63,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.mode == "walk":
         res = harness_walk(robot, conv, tau=tau, kp=args.kp, kd=args.kd, floor_offset=args.floor_offset)
     else:
-        res = stand(robot, conv, duration=args.duration, pressure=args.pressure * 1e3, tau=tau, kp=args.kp,
-                    kd=args.kd)
+        res = stand(robot, conv, duration=args.duration, pressure=None if args.pressure is None else args.pressure * 1e3,
+                    tau=tau, kp=args.kp, kd=args.kd)
     write_run(conv, res, Path(args.out), args.force, res.summary.get("weight_N"))
     s = res.summary
     rms = ", ".join(f"{c} {s['angle_rms_deg'][c]:.1f}°" for c in s["tracked"])

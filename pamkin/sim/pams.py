@@ -129,10 +129,17 @@ class PamDrive:
             R[:, c] -= J[:, dof] * g[k]
         return R
 
-    def pressure_gain(self, data: mujoco.MjData, dp: float = 1e3) -> np.ndarray:
-        """(n_pams,) ∂T/∂p at the current lengths and pressures [N/Pa] (forward difference of ``dp`` Pa)."""
+    def affine(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+        """(a, b) per PAM at the current lengths: the tension is max(a + b·p, 0) (the v3 force law is affine in
+        pressure at a fixed strain; as :func:`pamkin.gait.plan.force_coefficients`, from the tensions at p_max and
+        2·p_max; a = b = 0 for a PAM slack up to p_max) [N, N/Pa]."""
         L = data.ten_length[self.tendons]
-        return (self.tension(L, self.pressure + dp) - self.tension(L, self.pressure)) / dp
+        n = len(L)
+        f1 = self.tension(L, np.full(n, P_MAX))
+        f2 = self.tension(L, np.full(n, 2 * P_MAX))
+        live = f1 > 0
+        b = np.where(live, (f2 - f1) / P_MAX, 0.0)
+        return np.where(live, f1 - b * P_MAX, 0.0), b
 
     def apply(self, data: mujoco.MjData) -> np.ndarray:
         """Apply the PAMs' forces at the current tendon lengths and Jacobian (of the last position stage) and

@@ -185,10 +185,37 @@ def harness_walk(robot: PamRobot, conv: Conversion, tau: float = TAU, kp: float 
     return res
 
 
-def stand(robot: PamRobot, conv: Conversion, duration: float = 10.0, pressure: float = 300e3, tau: float = TAU,
+def static_torques(scene: Scene, q: np.ndarray) -> np.ndarray:
+    """Coordinate torques (drive order) holding the robot still at ``q`` with each foot carrying half the weight
+    straight up under its contact spheres' centre (``mj_inverse`` with zero speeds and accelerations,
+    constraints off; the pelvis's six are what the feet's split leaves unbalanced)."""
+    m, d = scene.model, scene.data
+    scene.set_pose(q)
+    weight = float(m.body_subtreemass[0]) * 9.80665
+    ext = np.zeros(m.nv)
+    for side in ("r", "l"):
+        geoms = [g for g in range(m.ngeom) if m.geom(g).name.startswith("contact")
+                 and m.geom_bodyid[g] in (m.body(f"calcn_{side}").id, m.body(f"toes_{side}").id)]
+        point = d.geom_xpos[geoms].mean(axis=0)
+        mujoco.mj_applyFT(m, d, np.array([0.0, weight / 2, 0.0]), np.zeros(3), point, m.body(f"calcn_{side}").id,
+                          ext)
+    flags = m.opt.disableflags
+    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    d.qacc[:] = 0.0
+    mujoco.mj_inverse(m, d)
+    m.opt.disableflags = flags
+    f = d.qfrc_inverse - ext
+    drive = scene.drive
+    G = scene.conv.cmap.dqpos_dq(q[None])[0]
+    cols = [scene.conv.cmap.coordinates.index(c) for c in drive.coordinates]
+    return (G.T @ f[scene.dadr])[cols]
+
+
+def stand(robot: PamRobot, conv: Conversion, duration: float = 10.0, pressure: float | None = None, tau: float = TAU,
           kp: float | None = None, kd: float | None = None) -> SimResult:
-    """Stand unsupported from the default pose: constant feedforward ``pressure`` [Pa] plus the feedback
-    towards the default pose (every non-pelvis coordinate)."""
+    """Stand unsupported from the default pose: feedforward pressures holding the pose statically
+    (:func:`static_torques` through :meth:`PressureController.pressures_for`), or a constant ``pressure`` [Pa]
+    when given, plus the feedback towards the default pose (every non-pelvis coordinate)."""
     model = robot.model
     q0 = model.default_q
     scene = build_scene(conv, robot, q0[None], harness=False, tau=tau)
@@ -198,7 +225,11 @@ def stand(robot: PamRobot, conv: Conversion, duration: float = 10.0, pressure: f
     kw = {k: v for k, v in (("kp", kp), ("kd", kd)) if v is not None}
     ctrl = PressureController.for_drive(drive, controlled, **kw)
     ref = (q0[cidx], np.zeros(len(cidx)))
-    ff = np.full(len(drive.tendons), float(pressure))
+    if pressure is None:
+        scene.set_pose(q0)
+        ff = ctrl.pressures_for(drive, scene.data, static_torques(scene, q0)[ctrl.columns])
+    else:
+        ff = np.full(len(drive.tendons), float(pressure))
     scene.set_pose(q0)
     drive.pressure[:] = ff
     res = _run(scene, ctrl, duration, lambda t: ref, lambda t: ff, None, "stand")
@@ -206,7 +237,8 @@ def stand(robot: PamRobot, conv: Conversion, duration: float = 10.0, pressure: f
     drift = np.linalg.norm((p - p[0])[:, [0, 2]], axis=1)
     fallen = np.nonzero(p[0, 1] - p[:, 1] >= FALL_DROP)[0]
     res.summary = _tracking_summary(res) | {
-        "duration_s": duration, "feedforward_pressure_Pa": pressure,
+        "duration_s": duration, "feedforward": "static equilibrium" if pressure is None else f"{pressure:g} Pa",
+        "feedforward_pressure_mean_Pa": float(ff.mean()),
         "pelvis_horizontal_drift_max_m": float(drift.max()), "pelvis_drop_max_m": float(np.max(p[0, 1] - p[:, 1])),
         "stayed_up": not len(fallen), "fell_at_s": float(res.times[fallen[0]]) if len(fallen) else None,
         "pressure_time_constant_s": tau,

@@ -76,3 +76,32 @@ def test_simulate_cli_writes_the_run_folder(tmp_path, capsys):
     assert main(["simulate", "--mode", "stand", "--out", str(out)]) == 2          # exists: refused
     assert main(["simulate", "--tau", "0", "--out", str(tmp_path / "x")]) == 2
     assert "--tau" in capsys.readouterr().err and not (tmp_path / "x").exists()
+
+
+def test_feedback_pressures_produce_the_asked_torque(robot_conv):
+    """The controller's pressure change realises the requested torque about each coordinate (Festo law and
+    MuJoCo's moment arms, pressures within 0-620 kPa), with little torque about the others."""
+    from pamkin.sim.control import PressureController
+
+    robot, conv = robot_conv
+    q0 = robot.model.default_q
+    scene = build_scene(conv, robot, q0[None])
+    scene.set_pose(q0)
+    drive = scene.drive
+    ctrl = PressureController.for_drive(drive, [c for c in drive.coordinates if not c.startswith("pelvis_")])
+    drive.pressure[:] = 200e3
+    mujoco.mj_fwdPosition(scene.model, scene.data)
+
+    def torques(p):
+        return drive.generalized_forces(scene.data, drive.tension(scene.data.ten_length[drive.tendons], p))
+
+    base = torques(drive.pressure)
+    for c in ("hip_flexion_r", "knee_angle_l", "ankle_angle_r", "lumbar_extension"):
+        k = ctrl.coordinates.index(c)
+        tau = np.zeros(len(ctrl.columns))
+        tau[k] = 20.0
+        dp = ctrl.feedback(drive, scene.data, None, None, drive.pressure.copy(), tau=tau)
+        assert (drive.pressure + dp >= -1e-6).all() and (drive.pressure + dp <= 620e3 + 1e-6).all()
+        got = (torques(drive.pressure + dp) - base)[ctrl.columns]
+        assert got[k] == pytest.approx(20.0, rel=0.1), c
+        assert np.abs(np.delete(got, k)).max() < 2.0, c
