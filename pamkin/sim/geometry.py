@@ -33,7 +33,8 @@ class MjGeometry:
         ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, safe(j.name)) for j in cmap.joints]
         self.qadr = np.array([model.jnt_qposadr[i] for i in ids])
         self.dadr = np.array([model.jnt_dofadr[i] for i in ids])
-        self.tendon_ids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, safe(t)) for t in tendons])
+        self.tendon_ids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, safe(t)) for t in tendons],
+                                   dtype=int)
         self._rows, self._cols = tendon_jacobian_pattern(model)
 
     def set_pose(self, qpos_row: np.ndarray) -> None:

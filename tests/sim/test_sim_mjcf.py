@@ -141,3 +141,47 @@ def test_spline_and_coupler_ties():
     rot = [j for j in pat if j.name.endswith("rotation1")][0]
     assert np.allclose(rot.value(qk), expected, atol=1e-15)
     assert 0 < rot.error < 0.03                              # the polynomial's deviation [rad], stated
+
+
+TWO_BODY = __import__("locations").DATA / "two_body.osim"
+_AXES = "".join(
+    f'<TransformAxis name="{n}"><coordinates>{c}</coordinates><axis>{a}</axis>{f}</TransformAxis>'
+    for n, c, a, f in (
+        ("rotation1", "angle", "0 0 1", '<SimmSpline name="function"><x> -1.5 0 1.5</x><y> -1 0 2</y></SimmSpline>'),
+        ("rotation2", "", "1 0 0", '<Constant name="function"><value>0</value></Constant>'),
+        ("rotation3", "", "0 1 0", '<Constant name="function"><value>0</value></Constant>'),
+        ("translation1", "", "1 0 0", '<Constant name="function"><value>0</value></Constant>'),
+        ("translation2", "", "0 1 0", '<Constant name="function"><value>0</value></Constant>'),
+        ("translation3", "", "0 0 1", '<Constant name="function"><value>0</value></Constant>')))
+
+
+def test_weld_and_pin_joints_convert_exactly():
+    conv = convert_model(load_osim(TWO_BODY))
+    model = conv.model
+    q = model.random_q(5, seed=1)
+    geo = MjGeometry(conv.compile(), conv.cmap, [])
+    T = model.body_transforms(q)
+    for n, qpos in enumerate(conv.cmap.qpos(q)):
+        geo.set_pose(qpos)
+        i = mujoco.mj_name2id(geo.model, mujoco.mjtObj.mjOBJ_BODY, "arm")
+        assert np.abs(geo.data.xpos[i] - T["arm"][n, :3, 3]).max() < 1e-12
+
+
+def test_a_coordinate_without_a_linear_axis_is_refused(tmp_path, capsys):
+    """A coordinate that moves its only axis through a spline has no MuJoCo joint to stand for it: a clear error
+    naming the component (exit 2 from the command line), nothing written."""
+    from pamkin.cli import main
+    from pamkin.errors import UnsupportedFeatureError
+
+    text = TWO_BODY.read_text()
+    start, end = text.index("<PinJoint"), text.index("</PinJoint>") + len("</PinJoint>")
+    pin = text[start:end].replace("<PinJoint", "<CustomJoint").replace("</PinJoint>", "</CustomJoint>")
+    pin = pin.replace("<frames>", f"<SpatialTransform>{_AXES}</SpatialTransform><frames>")
+    bad = tmp_path / "spline_only.osim"
+    bad.write_text(text[:start] + pin + text[end:])
+    with pytest.raises(UnsupportedFeatureError, match="elbow_rotation1"):
+        CoordinateMap(load_osim_file(bad))
+    assert main(["mjcf", "--osim", str(bad), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "spline_only.osim" in err and "angle" in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()
