@@ -31,6 +31,8 @@ def add_parsers(sub) -> None:
     s.add_argument("--floor-offset", type=float, default=0.0,
                    help="walk: floor this far below the lowest foot point of the trial [m], negative: above "
                         "(default 0)")
+    s.add_argument("--lead", type=float, default=1.0,
+                   help="walk: command the plan this many pressure time constants ahead (default 1; 0: no lead)")
     s.set_defaults(func=cmd_simulate)
 
 
@@ -52,6 +54,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             raise ParameterError(f"--{name} must be in [0, 1e5], got {v}")
     if not -0.1 <= args.floor_offset <= 0.5:
         raise ParameterError(f"--floor-offset must be in [-0.1, 0.5] m, got {args.floor_offset}")
+    if not 0 <= args.lead <= 5:
+        raise ParameterError(f"--lead must be in [0, 5] time constants, got {args.lead}")
     check_output_folder(args.out, args.force)              # before any work
     from pamkin.robot.biped import design_robot  # noqa: PLC0415
     from pamkin.sim.convert import convert_robot  # noqa: PLC0415
@@ -61,7 +65,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     robot = design_robot(None if args.design in (None, "robot") else args.design)
     conv = convert_robot(robot)
     if args.mode == "walk":
-        res = harness_walk(robot, conv, tau=tau, kp=args.kp, kd=args.kd, floor_offset=args.floor_offset)
+        res = harness_walk(robot, conv, tau=tau, kp=args.kp, kd=args.kd, floor_offset=args.floor_offset,
+                           lead=args.lead)
     else:
         res = stand(robot, conv, duration=args.duration, pressure=None if args.pressure is None else args.pressure * 1e3,
                     tau=tau, kp=args.kp, kd=args.kd)

@@ -129,8 +129,10 @@ def _run(scene: Scene, ctrl: PressureController, duration: float, reference, fee
 
 
 def harness_walk(robot: PamRobot, conv: Conversion, tau: float = TAU, kp: float | None = None,
-                 kd: float | None = None, floor_offset: float = 0.0, **trial) -> SimResult:
+                 kd: float | None = None, floor_offset: float = 0.0, lead: float = 1.0, **trial) -> SimResult:
     """Walk on a harness along the trial (``trial``: keyword arguments of :func:`pamkin.gait.plan.load_trial`).
+
+    The feedforward is the plan ``lead``·τ ahead (the pressures lag their commands by τ; 0: the plan as is).
 
     The floor touches the lowest foot sphere over the trial's frames, lowered by ``floor_offset`` [m] (negative:
     raised). The trial's own floor (its centres of pressure, y = −0.0075 m) is not used: the IK angles belong to
@@ -157,8 +159,8 @@ def harness_walk(robot: PamRobot, conv: Conversion, tau: float = TAU, kp: float 
         return (np.array([np.interp(t, times, tr.q[:, j]) for j in cidx]),
                 np.array([np.interp(t, times, qd[:, j]) for j in cidx]))
 
-    def feedforward(t):
-        return np.array([np.interp(t, times, P[:, j]) for j in range(P.shape[1])])
+    def feedforward(t):                     # the plan τ ahead: the pressures lag the commands by τ
+        return np.array([np.interp(t + lead * tau, times, P[:, j]) for j in range(P.shape[1])])
 
     def mocap(t):
         k = min(int(round(t / dt)), len(fine) - 1)
@@ -181,7 +183,7 @@ def harness_walk(robot: PamRobot, conv: Conversion, tau: float = TAU, kp: float 
         "harness_peak_vertical_load_fraction": float(np.max(res.harness[:, 1]) / weight),
         "plan_feasible_frame_fraction": float(plan.feasible_frame_fraction),
         "pressure_time_constant_s": tau, "kp": float(ctrl.kp.max()), "kd": float(ctrl.kd.max()),
-        "floor_m": scene.floor}
+        "floor_m": scene.floor, "feedforward_lead_s": lead * tau}
     return res
 
 
