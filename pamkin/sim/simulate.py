@@ -5,8 +5,9 @@
   are ``pamkin gait``'s plan of the trial plus the PD feedback of :mod:`pamkin.sim.control` towards the trial's
   angles. Reported: angle RMS per coordinate against the trial, the harness's mean vertical load as a fraction
   of body weight.
-* :func:`stand`: the free robot (no harness) from its default pose with the feet on the floor, constant
-  feedforward pressures plus the same feedback towards that pose; reported: pelvis drift and whether it stays up.
+* :func:`stand`: the free robot (no harness) from a standing pose with the feet on the floor (:func:`standing_pose`),
+  feedforward pressures holding it statically plus the same feedback towards that pose; reported: pelvis drift
+  and whether it stays up.
 """
 
 from __future__ import annotations
@@ -213,13 +214,36 @@ def static_torques(scene: Scene, q: np.ndarray) -> np.ndarray:
     return (G.T @ f[scene.dadr])[cols]
 
 
+def standing_pose(robot: PamRobot, conv: Conversion) -> np.ndarray:
+    """The default pose leaned forward about the ankles (ankle angles +a, pelvis tilt −a: the feet stay flat)
+    until the centre of mass is above the middle of the feet's contact spheres (Gait2392's all-zero pose has it
+    3 cm inside the heels)."""
+    C = robot.model.coordinates
+
+    def offset(a: float) -> tuple[np.ndarray, float]:
+        q = robot.model.default_q.copy()
+        for side in ("r", "l"):
+            q[C.index(f"ankle_angle_{side}")] = a
+        q[C.index("pelvis_tilt")] = -a
+        scene = build_scene(conv, robot, q[None])
+        scene.set_pose(q)
+        m, d = scene.model, scene.data
+        g = [i for i in range(m.ngeom) if m.geom(i).name.startswith("contact")]
+        mujoco.mj_subtreeVel(m, d)
+        return q, float(d.subtree_com[0][0] - 0.5 * (d.geom_xpos[g, 0].min() + d.geom_xpos[g, 0].max()))
+
+    a0, a1 = 0.0, 0.1
+    e0, e1 = offset(a0)[1], offset(a1)[1]
+    return offset(a0 - e0 * (a1 - a0) / (e1 - e0))[0]
+
+
 def stand(robot: PamRobot, conv: Conversion, duration: float = 10.0, pressure: float | None = None, tau: float = TAU,
           kp: float | None = None, kd: float | None = None) -> SimResult:
-    """Stand unsupported from the default pose: feedforward pressures holding the pose statically
+    """Stand unsupported from :func:`standing_pose`: feedforward pressures holding the pose statically
     (:func:`static_torques` through :meth:`PressureController.pressures_for`), or a constant ``pressure`` [Pa]
     when given, plus the feedback towards the default pose (every non-pelvis coordinate)."""
     model = robot.model
-    q0 = model.default_q
+    q0 = standing_pose(robot, conv)
     scene = build_scene(conv, robot, q0[None], harness=False, tau=tau)
     drive = scene.drive
     cidx = [model.coordinates.index(c) for c in drive.coordinates]
