@@ -22,8 +22,6 @@ MEASURE_SEED = 2026
 #: Goals of issue 45 for Gait2392's muscles: length and moment-arm errors [m].
 LENGTH_GOAL = 0.5e-3
 ARM_GOAL = 1e-3
-#: A path whose largest length error is below this is exact to round-off [m].
-EXACT = 1e-6
 
 
 def measure(conv: Conversion, n: int = 1000, seed: int = MEASURE_SEED) -> GeometryErrors:

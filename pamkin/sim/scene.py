@@ -73,11 +73,18 @@ class Scene:
             d.qvel[self.dadr] = self.conv.cmap.dqpos_dq(q)[0] @ qdot
         mujoco.mj_forward(self.model, d)
 
-    def coordinates(self) -> np.ndarray:
-        """The independent coordinates of the current state, in the model's coordinate order (dependent
-        coordinates NaN)."""
+    def positions(self) -> np.ndarray:
+        """The independent coordinates of the current state, in the drive's order (``drive.coordinates``)
+        [rad, m]."""
         vals = self.conv.cmap.coordinates_of(self.data.qpos[self.qadr])
-        return np.array([vals[c][0] if c in vals else np.nan for c in self.conv.cmap.coordinates])
+        return np.array([vals[c][0] for c in self.drive.coordinates])
+
+    def speeds(self) -> np.ndarray:
+        """Their speeds [rad/s, m/s] (a primary joint's speed divided by its slope)."""
+        cmap = self.conv.cmap
+        idx = [cmap.primary[c][0] for c in self.drive.coordinates]
+        slope = np.array([cmap.primary[c][1] for c in self.drive.coordinates])
+        return self.data.qvel[self.dadr[idx]] / slope
 
     def step(self) -> np.ndarray:
         """One time step with the PAM forces; returns the route tensions used [N]."""

@@ -69,17 +69,6 @@ class SimResult:
     summary: dict = field(default_factory=dict)
 
 
-def _speeds(scene: Scene) -> np.ndarray:
-    """Independent coordinates' speeds (drive order) [rad/s, m/s]."""
-    d = scene.drive
-    return scene.data.qvel[d._prim_dof] / d._a
-
-
-def _positions(scene: Scene) -> np.ndarray:
-    d = scene.drive
-    return (scene.data.qpos[d._prim_qadr] - np.array([scene.conv.cmap.primary[c][2] for c in d.coordinates])) / d._a
-
-
 def _run(scene: Scene, ctrl: PressureController, duration: float, reference, feedforward, mocap=None,
          kind: str = "") -> SimResult:
     """Step ``scene`` for ``duration`` s: every control period the command from the reference (t -> (q, q̇) in
@@ -104,10 +93,10 @@ def _run(scene: Scene, ctrl: PressureController, duration: float, reference, fee
             qr, qdr = reference(t)
             cols = ctrl.columns
             mujoco.mj_fwdPosition(m, d)
-            err, derr = qr[cols] - _positions(scene)[cols], qdr[cols] - _speeds(scene)[cols]
+            err, derr = qr[cols] - scene.positions()[cols], qdr[cols] - scene.speeds()[cols]
             drive.command[:] = ctrl.command(drive, d, feedforward(t), err, derr)
             rows["t"].append(t)
-            rows["q"].append(_positions(scene))
+            rows["q"].append(scene.positions())
             rows["q_ref"].append(qr)
             rows["p"].append(drive.pressure.copy())
             rows["u"].append(drive.command.copy())
