@@ -33,6 +33,9 @@ def add_parsers(sub) -> None:
                         "(default 0)")
     s.add_argument("--lead", type=float, default=1.0,
                    help="walk: command the plan this many pressure time constants ahead (default 1; 0: no lead)")
+    s.add_argument("--ground", action="store_true",
+                   help="walk: lower the pelvis frame by frame until the loaded feet touch the floor (default: the "
+                        "trial's pelvis height)")
     s.set_defaults(func=cmd_simulate)
 
 
@@ -66,7 +69,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     conv = convert_robot(robot)
     if args.mode == "walk":
         res = harness_walk(robot, conv, tau=tau, kp=args.kp, kd=args.kd, floor_offset=args.floor_offset,
-                           lead=args.lead)
+                           lead=args.lead, ground=args.ground)
     else:
         res = stand(robot, conv, duration=args.duration, pressure=None if args.pressure is None else args.pressure * 1e3,
                     tau=tau, kp=args.kp, kd=args.kd)

@@ -13,15 +13,17 @@
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import mujoco
 import numpy as np
 
 from pamkin.errors import RangeWarning
-from pamkin.gait.plan import evaluate_plan, load_trial
+from pamkin.gait.plan import DEFAULT_GRF, evaluate_plan, load_trial
+from pamkin.opensim.storage import read_storage
 from pamkin.robot.biped import PamRobot
 from pamkin.sim.control import PressureController
+from pamkin.sim.inverse import foot_assignment
 from pamkin.sim.convert import Conversion
 from pamkin.sim.pams import TAU
 from pamkin.sim.scene import Scene, build_scene
@@ -118,11 +120,44 @@ def _run(scene: Scene, ctrl: PressureController, duration: float, reference, fee
                      arr["u"], arr["T"], arr["H"], arr["pelvis"], {b: np.array(v) for b, v in poses.items()})
 
 
+def grounded(scene: Scene, times: np.ndarray, q: np.ndarray, grf) -> np.ndarray:
+    """The trial's coordinates with the pelvis lowered, frame by frame, until the loaded feet (the ground
+    reactions' vertical force above 20 N) touch the floor, no foot going below it; smoothed over 5 frames. The
+    IK belongs to the scaled subject, whose pelvis rides higher than the generic skeleton's legs reach."""
+    conv, m, d = scene.conv, scene.model, scene.data
+    feet = foot_assignment(conv, times, q, grf)
+    st = read_storage(grf)
+    side_geoms = {}
+    for side in ("r", "l"):
+        bodies = {m.body(f"calcn_{side}").id, m.body(f"toes_{side}").id}
+        side_geoms[side] = [g for g in range(m.ngeom) if m.geom(g).name.startswith("contact")
+                            and m.geom_bodyid[g] in bodies]
+    low = np.zeros((len(q), 2))
+    for k, qpos in enumerate(conv.cmap.qpos(q)):
+        d.qpos[scene.qadr] = qpos
+        mujoco.mj_kinematics(m, d)
+        for j, side in enumerate(("r", "l")):
+            g = side_geoms[side]
+            low[k, j] = np.min(d.geom_xpos[g, 1] - m.geom_size[g, 0])
+    loaded = np.zeros((len(q), 2), dtype=bool)
+    for prefix, body in feet.items():
+        loaded[:, 0 if body.endswith("_r") else 1] = np.interp(times, st.time,
+                                                                st.data[:, st.columns.index(f"{prefix}vy")]) > 20.0
+    stance = np.where(loaded, low, np.inf).min(axis=1)
+    dy = np.minimum(np.where(np.isfinite(stance), stance, low.min(axis=1)), low.min(axis=1)) - scene.floor
+    dy = np.convolve(np.pad(dy, 2, mode="edge"), np.ones(5) / 5, mode="valid")
+    out = q.copy()
+    out[:, list(conv.model.coordinates).index("pelvis_ty")] -= np.maximum(dy, 0.0)
+    return out
+
+
 def harness_walk(robot: PamRobot, conv: Conversion, tau: float = TAU, kp: float | None = None,
-                 kd: float | None = None, floor_offset: float = 0.0, lead: float = 1.0, **trial) -> SimResult:
+                 kd: float | None = None, floor_offset: float = 0.0, lead: float = 1.0, ground: bool = False,
+                 **trial) -> SimResult:
     """Walk on a harness along the trial (``trial``: keyword arguments of :func:`pamkin.gait.plan.load_trial`).
 
-    The feedforward is the plan ``lead``·τ ahead (the pressures lag their commands by τ; 0: the plan as is).
+    The feedforward is the plan ``lead``·τ ahead (the pressures lag their commands by τ; 0: the plan as is). With
+    ``ground`` the pelvis follows the trial lowered so that the loaded feet touch the floor (:func:`grounded`).
 
     The floor touches the lowest foot sphere over the trial's frames, lowered by ``floor_offset`` [m] (negative:
     raised). The trial's own floor (its centres of pressure, y = −0.0075 m) is not used: the IK angles belong to
@@ -137,6 +172,8 @@ def harness_walk(robot: PamRobot, conv: Conversion, tau: float = TAU, kp: float 
     times = tr.times - tr.times[0]
     model = robot.model
     scene = build_scene(conv, robot, tr.q, harness=True, tau=tau, floor_offset=floor_offset)
+    if ground:
+        tr = replace(tr, q=grounded(scene, tr.times, tr.q, trial.get("grf", DEFAULT_GRF)))
     drive = scene.drive
     cidx = [model.coordinates.index(c) for c in drive.coordinates]
     qd = np.gradient(tr.q, tr.times, axis=0)
@@ -173,7 +210,7 @@ def harness_walk(robot: PamRobot, conv: Conversion, tau: float = TAU, kp: float 
         "harness_peak_vertical_load_fraction": float(np.max(res.harness[:, 1]) / weight),
         "plan_feasible_frame_fraction": float(plan.feasible_frame_fraction),
         "pressure_time_constant_s": tau, "kp": float(ctrl.kp.max()), "kd": float(ctrl.kd.max()),
-        "floor_m": scene.floor, "feedforward_lead_s": lead * tau}
+        "floor_m": scene.floor, "feedforward_lead_s": lead * tau, "grounded_pelvis": ground}
     return res
 
 
