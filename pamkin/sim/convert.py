@@ -24,7 +24,7 @@ from pamkin.human.model import Model
 from pamkin.robot.biped import PamRobot
 from pamkin.robot.rollers import path_wraps
 from pamkin.sim.joints import CoordinateMap
-from pamkin.sim.mjcf import MjcfSpec, mjcf_document, safe
+from pamkin.sim.mjcf import MjcfSpec, inertia_issues, mjcf_document, safe
 from pamkin.sim.tendons import FIT_POSES, FIT_SEED, PathChoice, PathSpec, choose
 
 #: Reference geometry: q (N, n_coordinates) -> (lengths (N, M) [m], moment arms (N, M, n_coordinates) [m]).
@@ -74,6 +74,7 @@ class Conversion:
         ties = [{"joint": j.name, "coordinate": j.coordinate, "polycoef": j.poly.tolist(), "max_error": j.error}
                 for j in self.cmap.joints if not j.primary]
         return {"model": self.name, "seconds": self.seconds,
+                "inertia_adjusted": inertia_issues(self.model.osim),
                 "primary_joints": {c: {"joint": self.cmap.joints[i].name, "slope": a, "intercept": b}
                                    for c, (i, a, b) in self.cmap.primary.items()},
                 "tied_joints": ties,

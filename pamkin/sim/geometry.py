@@ -107,6 +107,9 @@ def compare(names: list[str], L: np.ndarray, R: np.ndarray, Lref: np.ndarray, Rr
             coordinates: np.ndarray | None = None) -> GeometryErrors:
     """Errors of lengths L (N, M) and moment arms R (N, M, C) against the references, moment arms over the
     coordinate columns ``coordinates`` (default all)."""
+    if not len(names):
+        empty = np.zeros(0)
+        return GeometryErrors([], empty, empty, empty, empty)
     dL = np.abs(L - Lref)
     dR = np.abs(R - Rref)
     if coordinates is not None:

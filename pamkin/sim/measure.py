@@ -96,7 +96,8 @@ def summary(errors: GeometryErrors, exact: np.ndarray) -> dict:
             "arm_p99_within_goal": int((errors.arm_p99 <= ARM_GOAL).sum()),
             "exact_length_max_m": float(errors.length_max[exact].max()) if exact.any() else 0.0,
             "exact_arm_max_m": float(errors.arm_max[exact].max()) if exact.any() else 0.0,
-            "length_max_m": float(errors.length_max.max()), "arm_max_m": float(errors.arm_max.max())}
+            "length_max_m": float(errors.length_max.max(initial=0.0)),
+            "arm_max_m": float(errors.arm_max.max(initial=0.0))}
 
 
 def error_figure(errors: GeometryErrors, title: str):

@@ -89,7 +89,8 @@ def safe(name: str) -> str:
 def mjcf_document(osim: OsimModel, cmap: CoordinateMap, spec: MjcfSpec) -> str:
     """The MJCF text of the model."""
     root = ET.Element("mujoco", model=safe(spec.name))
-    ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", autolimits="true", meshdir=".")
+    ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", autolimits="true", meshdir=".",
+                  balanceinertia="true")
     ET.SubElement(root, "option", timestep=_num(spec.timestep), gravity=_nums(GRAVITY), jacobian="dense",
                   integrator="implicitfast")
     if any(spec.meshes.values()):
@@ -177,10 +178,37 @@ def _inertial(el: ET.Element, body) -> None:
     if body is None or body.mass <= 0:
         ET.SubElement(el, "inertial", pos="0 0 0", mass=_num(TINY_MASS), diaginertia=_nums([TINY_INERTIA] * 3))
         return
-    I = np.array(body.inertia, float)
-    if np.all(I[:3] <= 0):
-        I[:3] = TINY_INERTIA
-    ET.SubElement(el, "inertial", pos=_nums(body.mass_center), mass=_num(body.mass), fullinertia=_nums(I))
+    I = inertia_matrix(body.inertia)
+    lam, V = np.linalg.eigh(I)
+    if lam.min() <= 0:                     # not a physical inertia: its eigenvalues raised (stated, inertia_issues)
+        I = V @ np.diag(np.maximum(lam, TINY_INERTIA)) @ V.T
+    vals = (I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2])
+    ET.SubElement(el, "inertial", pos=_nums(body.mass_center), mass=_num(body.mass), fullinertia=_nums(vals))
+
+
+def inertia_matrix(inertia) -> np.ndarray:
+    """(3, 3) inertia matrix of OpenSim's (Ixx, Iyy, Izz, Ixy, Ixz, Iyz) [kg·m²]."""
+    xx, yy, zz, xy, xz, yz = (float(v) for v in inertia)
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+
+
+def inertia_issues(osim: OsimModel) -> list[dict]:
+    """Bodies whose inertia MuJoCo cannot take as it is, and what the conversion does: principal moments ≤ 0 are
+    raised to :data:`TINY_INERTIA`; principal moments violating the triangle inequality A + B ≥ C are balanced
+    by MuJoCo (``balanceinertia``)."""
+    out = []
+    for b in osim.bodies:
+        if b.mass <= 0:
+            out.append({"body": b.name, "issue": "no mass", "change": f"mass {TINY_MASS} kg"})
+            continue
+        lam = np.linalg.eigvalsh(inertia_matrix(b.inertia))
+        if lam.min() <= 0:
+            out.append({"body": b.name, "issue": f"principal moments {lam.tolist()}",
+                        "change": f"raised to at least {TINY_INERTIA} kg·m²"})
+        elif lam[0] + lam[1] < lam[2] * (1 - 1e-9):
+            out.append({"body": b.name, "issue": f"principal moments {lam.tolist()} violate A + B >= C",
+                        "change": "balanced by MuJoCo (compiler balanceinertia)"})
+    return out
 
 
 def _limits(cmap: CoordinateMap, mj, spec: MjcfSpec) -> dict[str, str]:

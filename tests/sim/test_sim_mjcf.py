@@ -185,3 +185,21 @@ def test_a_coordinate_without_a_linear_axis_is_refused(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "spline_only.osim" in err and "angle" in err and "Traceback" not in err
     assert not (tmp_path / "o").exists()
+
+
+def test_unphysical_inertias_are_adjusted_and_stated(tmp_path):
+    """A zero inertia and one violating A + B >= C (both occur in OpenSim's example models) compile, and the
+    conversion lists what it changed."""
+    text = TWO_BODY.read_text()
+    text = text.replace("<Body name=\"base\"><mass>1</mass><mass_center>0 0 0</mass_center><inertia>0.01 0.01 0.01 0 0 0",
+                        "<Body name=\"base\"><mass>1</mass><mass_center>0 0 0</mass_center><inertia>0 0 0 0 0 0")
+    text = text.replace("<Body name=\"arm\"><mass>1</mass><mass_center>0 -0.2 0</mass_center><inertia>0.01 0.01 0.01",
+                        "<Body name=\"arm\"><mass>1</mass><mass_center>0 -0.2 0</mass_center><inertia>0.01 0.01 0.05")
+    path = tmp_path / "odd_inertia.osim"
+    path.write_text(text)
+    conv = convert_model(load_osim(path))
+    m = conv.compile()
+    assert m.nbody == 3
+    issues = {i["body"]: i["change"] for i in conv.summary()["inertia_adjusted"]}
+    assert set(issues) == {"base", "arm"}
+    assert "raised" in issues["base"] and "balanced" in issues["arm"]
