@@ -42,7 +42,7 @@ def opensim_inverse_dynamics(osim: str | os.PathLike, coordinates_mot: str | os.
                "out": tmp}
         env = dict(os.environ)
         run = subprocess.run([sys.executable, "-m", "pamkin.sim.opensim_id", json.dumps(job)], capture_output=True,
-                             text=True, timeout=timeout, env=env)
+                             text=True, timeout=timeout, env=env, cwd=tmp)    # OpenSim writes opensim.log there
         out = Path(tmp) / "id.sto"
         if run.returncode != 0 or not out.is_file():
             raise PamkinError(f"OpenSim's InverseDynamicsTool failed: {run.stderr.strip()[-800:]}")
