@@ -8,7 +8,7 @@ from architecture import cycles, graph, imports, modules
 #: Subpackages from the bottom up: each may import only those before it (and the shared top-level
 #: modules ``pamkin.errors``, ``pamkin._resources``, ``pamkin.yamlio``, ``pamkin.outputs``).
 LAYERS = ["pamkin.opensim", "pamkin.muscles", "pamkin.human", "pamkin.robot", "pamkin.gait", "pamkin.audit",
-          "pamkin.viz", "pamkin.build", "pamkin.optimize", "pamkin.cli"]
+          "pamkin.viz", "pamkin.build", "pamkin.sim", "pamkin.optimize", "pamkin.cli"]
 SHARED = {"pamkin.errors", "pamkin._resources", "pamkin.yamlio", "pamkin.outputs"}
 #: Where a function may import one of pamkin's modules: the command line imports a command's modules
 #: when the command runs (``pamkin --help`` stays fast) ...

@@ -1,6 +1,6 @@
 """The ``pamkin`` command line: one entry point with subcommands, one module each
 (``pamkin.cli.<command>``: torques, robot (size, compare), optimize, export, visual (view, report),
-gait, audit, build, fit_paths; ``info`` and ``urdf`` live here).
+gait, audit, build, fit_paths, mjcf, simulate; ``info`` and ``urdf`` live here).
 
 Run ``pamkin --help`` for the list and ``pamkin COMMAND --help`` for each command.
 """
@@ -135,6 +135,12 @@ def build_parser() -> argparse.ArgumentParser:
     from pamkin.cli import fit_paths as cli_fit_paths  # noqa: PLC0415
 
     cli_fit_paths.add_parsers(sub)
+    from pamkin.cli import mjcf as cli_mjcf  # noqa: PLC0415
+
+    cli_mjcf.add_parsers(sub)
+    from pamkin.cli import simulate as cli_simulate  # noqa: PLC0415
+
+    cli_simulate.add_parsers(sub)
     return p
 
 

@@ -1,0 +1,276 @@
+"""Muscle paths and PAM routes as MuJoCo spatial tendons, with the closest construct where MuJoCo has none.
+
+* A ``PathPoint`` is a site of its body: exact.
+* A ``MovingPathPoint`` is a site of its own body, a child of the point's body with one slide joint per
+  moving component (along the body's axes) tied to the coordinate's primary joint by a degree-4 polynomial
+  (:class:`pamkin.sim.joints.CoordinateMap`): approximate where the function is a spline.
+* A ``ConditionalPathPoint`` is a site that the tendon passes through always or never (MuJoCo has no
+  conditional points): the choice with the smaller length error on the fit poses.
+* ``WrapCylinder`` and ``WrapSphere`` are wrap geoms (MuJoCo's cylinders are infinite; OpenSim's quadrant
+  becomes a side site); ``WrapEllipsoid`` is a sphere or a cylinder (candidates from its radii); a
+  ``WrapTorus`` has no MuJoCo counterpart and is left out. MuJoCo wraps a geom placed between two sites, so
+  each wrap is placed in one segment of its range (OpenSim picks the segment per pose).
+
+Where a path has choices (conditional points, the wrap segment, the side site, the ellipsoid's stand-in)
+every combination is a candidate tendon of one fit model, evaluated on fit poses (their own seed, not the
+measurement's) against pamkin's lengths; the candidate with the smallest largest error is kept.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from pamkin.opensim.model_file import ConditionalPathPoint, MovingPathPoint
+from pamkin.opensim.wrapping import PathWrap, WrapObject
+from pamkin.sim.geometry import MjGeometry
+from pamkin.sim.joints import CoordinateMap, MjJoint
+from pamkin.sim.mjcf import MjcfSpec, Site, Tendon, WrapGeom, mjcf_document, safe
+
+#: Largest number of candidate tendons of one path (more: the wraps are chosen one at a time).
+MAX_CANDIDATES = 200
+#: Fit poses (seed :data:`FIT_SEED`) on which the candidates are compared.
+FIT_POSES = 300
+FIT_SEED = 12345
+
+
+@dataclass(frozen=True)
+class PathSpec:
+    """A path to convert: muscle or PAM route name, its points and its PathWraps."""
+
+    name: str
+    points: tuple
+    wraps: tuple[PathWrap, ...] = ()
+
+
+@dataclass
+class PathChoice:
+    """What the converter chose for one path, and why (its fit-pose error)."""
+
+    name: str
+    tendon: Tendon
+    conditional: dict[str, bool]
+    wraps: list[str]
+    omitted: list[str]
+    fit_error: float
+
+
+def build_sites(paths: Sequence[PathSpec], cmap: CoordinateMap, spec: MjcfSpec) -> list[list[str]]:
+    """Sites (and moving-point bodies and their tied joints) of every path point; returns the site names."""
+    out = []
+    for path in paths:
+        names = []
+        for i, pt in enumerate(path.points):
+            name = safe(f"{path.name}-{i}-{pt.name}")
+            if isinstance(pt, MovingPathPoint):
+                body = f"{name}-body"
+                spec.point_bodies.append((body, pt.body))
+                pos = np.zeros(3)
+                for k, (f, c) in enumerate(zip(pt.functions, pt.coordinates)):
+                    if f.is_constant or not c:
+                        pos[k] = float(np.asarray(f.value(np.zeros(1)))[0])
+                        continue
+                    coord, inner = cmap.root(c)
+                    mj = MjJoint(f"{name}-{'xyz'[k]}", body, "slide", np.zeros(3), np.eye(3)[k], coord,
+                                 (lambda ff, gg: (lambda x: ff.value(gg(np.asarray(x, float)))))(f, inner))
+                    cmap.joints.append(mj)
+                    cmap.tie(mj)
+                spec.sites.append(Site(name, body, pos))
+            else:
+                spec.sites.append(Site(name, pt.body, np.asarray(pt.location, float)))
+            names.append(name)
+        out.append(names)
+    return out
+
+
+def wrap_geoms(wo: WrapObject, spec: MjcfSpec, made: dict) -> list[tuple[str, list[str]]]:
+    """The geoms standing for ``wo`` (added to ``spec`` once) and, per geom, its side-site options."""
+    if wo.name in made:
+        return made[wo.name]
+    R = np.asarray(wo.rotation, float)
+    p = np.asarray(wo.translation, float)
+    axis, sign = wo.wrap_axis_sign
+    options: list[tuple[str, tuple[float, ...], np.ndarray, float]] = []
+    if not wo.active:
+        pass
+    elif wo.kind == "WrapCylinder":
+        options.append(("cylinder", (wo.dimensions[0], wo.dimensions[1] / 2), R, wo.dimensions[0]))
+    elif wo.kind == "WrapSphere":
+        options.append(("sphere", (wo.dimensions[0],), R, wo.dimensions[0]))
+    elif wo.kind == "WrapEllipsoid":
+        d = np.asarray(wo.dimensions, float)
+        for r in sorted({float(d.min()), float(d.mean()), float(d.max())}):
+            options.append(("sphere", (r,), R, r))
+        for k in range(3):              # a cylinder along each axis, radius the mean of the other two
+            other = [d[i] for i in range(3) if i != k]
+            Rk = R @ _z_to(k)
+            options.append(("cylinder", (float(np.mean(other)), float(d[k])), Rk, float(np.mean(other))))
+    out = []
+    for n, (kind, size, Rg, radius) in enumerate(options):
+        name = safe(f"{wo.name}" if len(options) == 1 else f"{wo.name}-{kind}{n}")
+        spec.geoms.append(WrapGeom(name, wo.body, kind, size, Rg, p))
+        sides = [""]
+        if sign != 0:
+            direction = R[:, axis] * sign
+            for tag, dist in (("out", 2.0), ("in", 0.5)):
+                s = f"{name}-side-{tag}"
+                spec.sites.append(Site(s, wo.body, p + direction * radius * dist))
+                sides.append(s)
+        out.append((name, sides))
+    made[wo.name] = out
+    return out
+
+
+def _z_to(k: int) -> np.ndarray:
+    """Rotation taking z to axis k (a cylinder geom's axis is its z)."""
+    if k == 2:
+        return np.eye(3)
+    if k == 0:
+        return np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])
+    return np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
+
+
+def candidates(path: PathSpec, sites: list[str], spec: MjcfSpec, made: dict,
+               standins: dict[int, list[tuple[str, str]]] | None = None) -> list[tuple[Tendon, dict, list, list]]:
+    """Every candidate tendon of ``path``: (tendon, conditional choices, wrap geoms used, wraps left out).
+
+    ``standins``: per conditional point index, wrap geoms (geom, side site) that may stand for it."""
+    standins = standins or {}
+    cond = [i for i, pt in enumerate(path.points) if isinstance(pt, ConditionalPathPoint)]
+    wrap_opts = []
+    omitted = []
+    for w in path.wraps:
+        geoms = wrap_geoms(w.wrap_object, spec, made)
+        if not geoms:
+            omitted.append(w.wrap_object.name)
+        wrap_opts.append((w, geoms))
+    out = []
+    for inc in itertools.product(*[[True, False, *standins.get(i, [])] for i in cond]):
+        keep = [i for i in range(len(path.points)) if i not in cond or inc[cond.index(i)] is True]
+        fixed = []                     # conditional points' stand-in geoms: (segment, geom, side)
+        for k, i in enumerate(cond):
+            if isinstance(inc[k], tuple):
+                j = max(n for n, kk in enumerate(keep) if kk < i)
+                fixed.append((j, *inc[k]))
+        per_wrap = []
+        for w, geoms in wrap_opts:
+            lo, hi = w.range
+            lo = 1 if lo < 1 else lo
+            hi = len(path.points) if hi < 1 else hi
+            segs = [j for j in range(len(keep) - 1) if lo <= keep[j] + 1 and keep[j + 1] + 1 <= hi]
+            per_wrap.append([None] + [(j, g, s) for j in segs for g, sides in geoms for s in sides])
+        combos = list(itertools.product(*per_wrap))
+        if len(combos) > MAX_CANDIDATES:            # one wrap at a time, the others left out
+            combos = [tuple(o if k == i else None for k in range(len(per_wrap)))
+                      for i, opts in enumerate(per_wrap) for o in opts]
+        for combo in combos:
+            used = fixed + [c for c in combo if c is not None]
+            if len({c[0] for c in used}) < len(used):   # two geoms in one segment: MuJoCo needs a site between
+                continue
+            items: list[tuple] = []
+            for j, i in enumerate(keep):
+                items.append(("site", sites[i]))
+                for c in used:
+                    if c[0] == j:
+                        items.append(("geom", c[1], c[2]))
+            choice = {path.points[i].name: (inc[k] if isinstance(inc[k], bool) else f"wrap {inc[k][0]}")
+                      for k, i in enumerate(cond)}
+            out.append((Tendon(path.name, items), choice, [c[1] for c in used], omitted))
+    return out
+
+
+#: Radii of the spheres and cylinders that may stand for a conditional path point [m].
+STANDIN_RADII = (0.002, 0.008, 0.02)
+
+
+def conditional_standins(osim, cmap: CoordinateMap, paths: Sequence[PathSpec], sites: list[list[str]],
+                         q_fit: np.ndarray, spec: MjcfSpec) -> list[dict[int, list[tuple[str, str]]]]:
+    """Wrap geoms that may stand for each conditional path point: a sphere and a cylinder through the point,
+    on the side of the straight line between its neighbours where the point bends the path (the mean
+    direction, in the point's body, over the fit poses where OpenSim includes it), with a side site beyond
+    the point. Where the straight line passes beyond the point the path no longer wraps: the point drops
+    out geometrically (OpenSim drops it by its coordinate's range)."""
+    out: list[dict[int, list[tuple[str, str]]]] = [{} for _ in paths]
+    todo = [(m, i) for m, p in enumerate(paths) for i, pt in enumerate(p.points)
+            if isinstance(pt, ConditionalPathPoint) and 0 < i < len(p.points) - 1]
+    if not todo:
+        return out
+    model = mujoco.MjModel.from_xml_string(mjcf_document(osim, cmap, MjcfSpec(spec.name, spec.sites, [], [],
+                                                                                spec.point_bodies)))
+    geo = MjGeometry(model, cmap, [])
+    sid = {s.name: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, s.name) for s in spec.sites}
+    qpos = cmap.qpos(q_fit)
+    pos = np.empty((len(q_fit), model.nsite, 3))
+    rot = np.empty((len(q_fit), model.nsite, 3, 3))
+    for n in range(len(q_fit)):
+        geo.set_pose(qpos[n])
+        pos[n] = geo.data.site_xpos
+        rot[n] = geo.data.site_xmat.reshape(-1, 3, 3)
+    for m, i in todo:
+        pt = paths[m].points[i]
+        a, p, b = (sid[sites[m][k]] for k in (i - 1, i, i + 1))
+        c = cmap.coordinates.index(pt.coordinate)
+        on = (q_fit[:, c] >= pt.range[0] - 1e-5) & (q_fit[:, c] <= pt.range[1] + 1e-5)
+        if not on.any():
+            continue
+        A, P, B, R = pos[on, a], pos[on, p], pos[on, b], rot[on, p]
+        e = (B - A) / np.linalg.norm(B - A, axis=1, keepdims=True)
+        d = P - A - np.einsum("ni,ni->n", P - A, e)[:, None] * e
+        nb = np.einsum("nji,nj->ni", R, d).mean(axis=0)       # into the point's body frame
+        ab = np.einsum("nji,nj->ni", R, np.cross(d, e)).mean(axis=0)
+        if np.linalg.norm(nb) < 1e-9 or np.linalg.norm(ab) < 1e-9:
+            continue
+        nb /= np.linalg.norm(nb)
+        ab -= nb * (ab @ nb)
+        ab /= np.linalg.norm(ab)
+        Rc = np.column_stack([nb, np.cross(ab, nb), ab])     # cylinder axis (z) = ab
+        loc = np.asarray(pt.location, float)
+        opts = []
+        for r in STANDIN_RADII:
+            side = safe(f"{sites[m][i]}-side-{r * 1000:g}mm")
+            spec.sites.append(Site(side, pt.body, loc + r * nb))
+            for kind, size in (("sphere", (r,)), ("cylinder", (r, 0.05))):
+                g = safe(f"{sites[m][i]}-{kind}-{r * 1000:g}mm")
+                spec.geoms.append(WrapGeom(g, pt.body, kind, size, Rc, loc - r * nb))
+                opts.append((g, side))
+        out[m][i] = opts
+    return out
+
+
+def choose(osim, cmap: CoordinateMap, paths: Sequence[PathSpec], reference: Callable[[np.ndarray], np.ndarray],
+           q_fit: np.ndarray, spec: MjcfSpec) -> list[PathChoice]:
+    """Build every path's candidates, evaluate them at ``q_fit`` in MuJoCo against ``reference(q_fit)``
+    (N, n_paths) lengths [m] and keep the best per path (``spec.tendons`` set to the chosen ones)."""
+    sites = build_sites(paths, cmap, spec)
+    standins = conditional_standins(osim, cmap, paths, sites, q_fit, spec)
+    made: dict = {}
+    cands = [candidates(p, s, spec, made, st) for p, s, st in zip(paths, sites, standins)]
+    fit_spec = MjcfSpec(spec.name, spec.sites, spec.geoms,
+                        [Tendon(f"{t.name}~{k}", t.path) for cs in cands for k, (t, _, _, _) in enumerate(cs)],
+                        spec.point_bodies)
+    model = mujoco.MjModel.from_xml_string(mjcf_document(osim, cmap, fit_spec))
+    geo = MjGeometry(model, cmap, [t.name for t in fit_spec.tendons])
+    L = geo.lengths(q_fit)
+    Lref = reference(q_fit)
+    out = []
+    col = 0
+    for m, (path, cs) in enumerate(zip(paths, cands)):
+        err = np.abs(L[:, col:col + len(cs)] - Lref[:, m:m + 1]).max(axis=0)
+        best = int(np.argmin(err))
+        t, choice, used, omitted = cs[best]
+        out.append(PathChoice(path.name, t, choice, used, omitted, float(err[best])))
+        col += len(cs)
+    spec.tendons = [c.tendon for c in out]
+    _prune(spec)
+    return out
+
+
+def _prune(spec: MjcfSpec) -> None:
+    """Drop the wrap geoms and side sites no chosen tendon uses."""
+    used = {x for t in spec.tendons for item in t.path for x in item[1:] if x}
+    spec.geoms = [g for g in spec.geoms if g.name in used]
+    spec.sites = [s for s in spec.sites if "-side-" not in s.name or s.name in used]
