@@ -55,6 +55,9 @@ QUICK: dict[str, tuple[list[list[str]], tuple[int, ...]]] = {
     "fit-paths": ([["fit-paths", "{shared}/opensim-models/Models/Gait10dof18musc/gait10dof18musc.osim",
                     "--out", "fitted.osim", "--max-order", "4", "--samples", "400", "--test-poses", "50",
                     "--keep-unfitted", "--report", "fit-report"], ["info", "--osim", "fitted.osim"]], (0,)),
+    "mjcf": ([["mjcf", "--out", "mjcf"], ["mjcf", "--design", "thesis", "--out", "mjcf-robot", "--measure", "20"]],
+             (0,)),
+    "simulate": ([["simulate", "--mode", "stand", "--duration", "0.2", "--out", "stand"]], (0,)),
 }
 
 
