@@ -26,6 +26,9 @@ def add_parsers(sub) -> None:
     s.add_argument("--max-order", type=int, default=8, help="highest polynomial order tried (1-12, default 8)")
     s.add_argument("--samples", type=int, default=4000, help="random fitting poses (100-200000, default 4000)")
     s.add_argument("--test-poses", type=int, default=1000, help="held-out random poses (10-200000, default 1000)")
+    s.add_argument("--rom", metavar="NAME", help="draw the poses from this range of motion of robot/data/rom.yaml "
+                                                 "(robot_thesis, robot_2026, human_thesis; side-less names apply "
+                                                 "to both legs) instead of the model's coordinate ranges")
     s.add_argument("--seed", type=int, default=0, help="seed of the fitting poses (held-out: seed + 1; default 0)")
     s.add_argument("--length-rms", type=float, default=0.1, help="tolerance: length RMS [mm] (default 0.1)")
     s.add_argument("--length-max", type=float, default=0.5, help="tolerance: largest length error [mm] (default 0.5)")
@@ -70,9 +73,14 @@ def cmd_fit_paths(args: argparse.Namespace) -> int:
         if unknown:
             raise ParameterError(f"--muscles: {args.osim} has no muscle {', '.join(map(repr, unknown))}")
     tol = FitTolerance(args.length_rms * 1e-3, args.length_max * 1e-3, args.moment_arm_rms * 1e-3)
-    fit = fit_paths(model, muscles, args.max_order, args.samples, args.test_poses, tol, args.seed)
+    rom = ()
+    if args.rom:
+        from pamkin.human.rom import load_rom  # noqa: PLC0415
+
+        rom = (load_rom(args.rom, "r"), load_rom(args.rom, "l"))
+    fit = fit_paths(model, muscles, args.max_order, args.samples, args.test_poses, tol, args.seed, rom=rom)
     print(f"fitted {len(fit.muscles)} muscles in {fit.seconds:.1f} s ({fit.n_samples} fitting poses, "
-          f"{fit.n_test} held-out); within tolerance: {len(fit.muscles) - len(fit.missed)}")
+          f"{fit.n_test} held-out, over {fit.ranges}); within tolerance: {len(fit.muscles) - len(fit.missed)}")
     if args.report:
         with output_folder(args.report, args.force) as tmp:
             write_report(fit, tmp, title=f"{model.osim.name}: fitted path errors")

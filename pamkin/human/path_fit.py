@@ -15,11 +15,14 @@ written silently (:func:`fit_paths` returns them in :attr:`PathFit.missed`).
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from pamkin.errors import ConfigurationError
 from pamkin.human.model import Model
+from pamkin.human.rom import RangeOfMotion
 from pamkin.opensim.functions import MultivariatePolynomial, polynomial_exponents
 from pamkin.opensim.model_file import FunctionPath
 
@@ -79,6 +82,8 @@ class PathFit:
         tolerance: The tolerance they were held to.
         n_samples: Fitting poses; n_test: held-out poses.
         seconds: Wall time of the fit (exact evaluation included) [s].
+        skipped: Muscles that span no coordinate (nothing to fit).
+        ranges: Where the poses were drawn (the model's coordinate ranges, or a named range of motion).
     """
 
     muscles: list[MuscleFit]
@@ -87,6 +92,7 @@ class PathFit:
     n_test: int
     seconds: float = 0.0
     skipped: list[str] = field(default_factory=list)
+    ranges: str = "the model's coordinate ranges"
 
     @property
     def missed(self) -> list[MuscleFit]:
@@ -113,12 +119,27 @@ def spanned_coordinates(model: Model) -> dict[int, list[int]]:
     return out
 
 
-def uniform_poses(model: Model, n: int, seed: int) -> np.ndarray:
+def uniform_poses(model: Model, n: int, seed: int, rom: Sequence[RangeOfMotion] = ()) -> np.ndarray:
     """``n`` poses uniform over every independent coordinate's range, locked ones included (a fitted path
-    must hold when a user unlocks them); dependent coordinates follow their couplers."""
+    must hold when a user unlocks them); dependent coordinates follow their couplers.
+
+    Args:
+        rom: Ranges of motion (e.g. :func:`pamkin.human.rom.load_rom` of each side) replacing the model's
+            ranges for the coordinates they name (coupled limits honoured; a coordinate named twice takes the
+            first).
+    """
     rng = np.random.default_rng(seed)
     lo, hi = model.coordinate_ranges.T
     q = lo + (hi - lo) * rng.random((n, len(lo)))
+    done: set[str] = set()
+    for r in rom:
+        cols = [c for c in r.coordinates if c in model.coordinates and c not in done]
+        for c, v in r.from_unit(cols, rng.random((n, len(cols)))).items():
+            q[:, model.coordinates.index(c)] = v
+        done |= set(cols)
+    if rom and not done:
+        raise ConfigurationError(f"the range of motion {rom[0].name!r} names none of the model's coordinates "
+                                 f"({', '.join(rom[0].coordinates)})")
     return model.kinematics.fill_dependent(q)
 
 
@@ -203,7 +224,7 @@ def _fit_group(names: list[str], coords: list[str], x: np.ndarray, L: np.ndarray
 
 def fit_paths(model: Model, muscles: list[str] | None = None, max_order: int = 8, n_samples: int = 4000,
               n_test: int = 1000, tolerance: FitTolerance | None = None, seed: int = 0,
-              arm_weight: float = 0.3) -> PathFit:
+              arm_weight: float = 0.3, rom: Sequence[RangeOfMotion] = ()) -> PathFit:
     """Fit a polynomial path function to each muscle from pamkin's exact lengths and moment arms.
 
     Args:
@@ -214,6 +235,8 @@ def fit_paths(model: Model, muscles: list[str] | None = None, max_order: int = 8
         n_test: Random held-out poses (another seed) the errors are measured on.
         tolerance: Per-muscle accuracy goals (default :class:`FitTolerance`).
         seed: Seed of the fitting poses (held-out: seed + 1).
+        rom: Fit (and measure) within these ranges of motion (e.g. one per side) instead of the model's
+            coordinate ranges, for the coordinates they name (:func:`uniform_poses`).
         arm_weight: Weight of the moment-arm residuals against the length residuals in the least squares
             (0.3: the tolerances ask ten times more of lengths than of moment arms; 0.3 met the most muscles
             on Gait10dof18musc and Rajagopal2016).
@@ -230,7 +253,7 @@ def fit_paths(model: Model, muscles: list[str] | None = None, max_order: int = 8
         if unknown:
             raise KeyError(f"unknown muscle(s) {unknown}; the model has {names}")
         chosen = [names.index(m) for m in muscles]
-    q, qt = uniform_poses(model, n_samples, seed), uniform_poses(model, n_test, seed + 1)
+    q, qt = uniform_poses(model, n_samples, seed, rom), uniform_poses(model, n_test, seed + 1, rom)
     res, rest = model.path_result(q), model.path_result(qt)
     pairs = {tuple(p): k for k, p in enumerate(model.pairs.tolist())}
     spans = spanned_coordinates(model)
@@ -250,4 +273,5 @@ def fit_paths(model: Model, muscles: list[str] | None = None, max_order: int = 8
                             rest.moment_arms[:, k], tol, max_order, arm_weight):
             fits[f.name] = f
     fits = [fits[names[m]] for m in chosen if names[m] in fits]
-    return PathFit(fits, tol, n_samples, n_test, time.perf_counter() - t0, skipped)
+    ranges = f"range of motion {', '.join(r.name for r in rom)}" if rom else "the model's coordinate ranges"
+    return PathFit(fits, tol, n_samples, n_test, time.perf_counter() - t0, skipped, ranges)

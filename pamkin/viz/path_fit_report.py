@@ -29,7 +29,8 @@ def table_markdown(fit: PathFit) -> str:
     """The per-muscle error table as Markdown, with the tolerance and a summary line."""
     t = fit.tolerance
     rows = fit.table()
-    lines = [f"Held-out random poses: {fit.n_test}; fitting poses: {fit.n_samples}; fit time {fit.seconds:.1f} s. "
+    lines = [f"Poses uniform over {fit.ranges}. Held-out random poses: {fit.n_test}; fitting poses: "
+             f"{fit.n_samples}; fit time {fit.seconds:.1f} s. "
              f"Tolerance: length RMS ≤ {1e3 * t.length_rms:g} mm, max ≤ {1e3 * t.length_max:g} mm, "
              f"moment-arm RMS ≤ {1e3 * t.moment_arm_rms:g} mm. Within it: {len(rows) - len(fit.missed)} of "
              f"{len(rows)} muscles.", "",
@@ -81,7 +82,7 @@ def write_report(fit: PathFit, folder: Path, title: str = "") -> list[Path]:
         png = write_figure(fig, folder / "errors.png", dpi=110)
     finally:
         plt.close(fig)
-    summary = {"n_samples": fit.n_samples, "n_test": fit.n_test, "seconds": fit.seconds,
+    summary = {"ranges": fit.ranges, "n_samples": fit.n_samples, "n_test": fit.n_test, "seconds": fit.seconds,
                "tolerance_m": {"length_rms": fit.tolerance.length_rms, "length_max": fit.tolerance.length_max,
                                "moment_arm_rms": fit.tolerance.moment_arm_rms},
                "missed": [m.name for m in fit.missed], "skipped": fit.skipped, "muscles": fit.table()}

@@ -131,3 +131,25 @@ def test_cli_bad_requests_exit_2(args, message, tmp_path, capsys):
     code = main(["fit-paths", str(GAIT10), "--out", str(tmp_path / "x.osim"), *args])
     assert code == 2 and message in capsys.readouterr().err
     assert not (tmp_path / "x.osim").exists()
+
+
+def test_poses_from_a_range_of_motion_stay_in_it():
+    from pamkin.human.rom import load_rom
+
+    model = pamkin.gait2392()
+    roms = (load_rom("robot_thesis", "r"), load_rom("robot_thesis", "l"))
+    q = uniform_poses(model, 500, 3, roms)
+    for r in roms:
+        cols = [c for c in r.coordinates if c in model.coordinates]
+        assert r.contains(cols, q[:, [model.coordinates.index(c) for c in cols]]).all()
+    k = model.coordinates.index("hip_flexion_l")
+    lo, hi = roms[1].limits["hip_flexion_l"]
+    assert q[:, k].min() < lo + 0.1 * (hi - lo) and q[:, k].max() > hi - 0.1 * (hi - lo)   # spans it
+    # coordinates the range does not name keep the model's range
+    j = model.coordinates.index("pelvis_tx")
+    assert q[:, j].min() < -4 and q[:, j].max() > 4
+
+
+def test_cli_unknown_range_of_motion_exits_2(tmp_path, capsys):
+    code = main(["fit-paths", str(GAIT10), "--rom", "nope", "--out", str(tmp_path / "x.osim")])
+    assert code == 2 and "no range of motion 'nope'" in capsys.readouterr().err
