@@ -20,7 +20,8 @@ def add_parsers(sub) -> None:
     s.add_argument("--out", metavar="FILE",
                    help="the fitted model (default: <MODEL stem>_fitted.osim in the current folder)")
     s.add_argument("--report", metavar="DIR", help="folder for errors.csv, errors.md, errors.png and fit.json, "
-                                                   "written whole (refused if it holds files unless --force)")
+                                                   "written whole (refused if it holds files unless --force; "
+                                                   "default: no report)")
     s.add_argument("--force", action="store_true", help="replace an existing --report folder (default: refuse)")
     s.add_argument("--muscles", metavar="A,B,...", help="fit only these muscles (default: every muscle with points)")
     s.add_argument("--max-order", type=int, default=8, help="highest polynomial order tried (1-12, default 8)")
@@ -28,7 +29,7 @@ def add_parsers(sub) -> None:
     s.add_argument("--test-poses", type=int, default=1000, help="held-out random poses (10-200000, default 1000)")
     s.add_argument("--rom", metavar="NAME", help="draw the poses from this range of motion of robot/data/rom.yaml "
                                                  "(robot_thesis, robot_2026, human_thesis; side-less names apply "
-                                                 "to both legs) instead of the model's coordinate ranges")
+                                                 "to both legs) (default: the model's coordinate ranges)")
     s.add_argument("--seed", type=int, default=0, help="seed of the fitting poses (held-out: seed + 1; default 0)")
     s.add_argument("--length-rms", type=float, default=0.1, help="tolerance: length RMS [mm] (default 0.1)")
     s.add_argument("--length-max", type=float, default=0.5, help="tolerance: largest length error [mm] (default 0.5)")

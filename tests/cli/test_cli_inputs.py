@@ -235,8 +235,9 @@ def test_export_osim_loads_back_into_pamkin(tmp_path, capsys):
         Rr = robot.evaluate(qd).moment_arms
         ci = [model.coordinates.index(c) for c in robot.coordinates]
         np.testing.assert_allclose(R[:, :, ci], Rr, atol=1e-10)
-    with pytest.raises(pamkin.UnsupportedFeatureError, match="PathActuator"):
-        model.tendon_forces(q[:1])
+    # PathActuator forces: optimal force x control (the activation argument), as OpenSim's computeActuation
+    F = model.tendon_forces(q[:2], activation=0.5)
+    assert np.allclose(F, 0.5 * np.array([m.params["optimal_force"] for m in model.osim.muscles]), rtol=1e-15)
 
 
 def test_tests_write_no_cache_outside_checkout_and_temp():
