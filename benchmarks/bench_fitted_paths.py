@@ -21,11 +21,11 @@ import json
 import subprocess
 import sys
 import tempfile
-import time
 import warnings
 from pathlib import Path
 
 import numpy as np
+from bench_wrapping import best_rate  # the same best-of-n timing as the wrapping benchmark
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT.parent / "shared" / "opensim-models" / "Models"
@@ -54,15 +54,6 @@ def _errors(exact, fitted, qt, names):
         er = Rb[:, j, cols] - Ra[:, i, cols]
         out[n] = (1e3 * np.sqrt(np.mean(e ** 2)), 1e3 * np.abs(e).max(), 1e3 * np.sqrt(np.mean(er ** 2)))
     return out
-
-
-def _rate(fn, n, repeats=3):
-    best = 0.0
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        best = max(best, n / (time.perf_counter() - t))
-    return best
 
 
 def _summary(label, errs, tol=(0.1, 0.5, 1.0)):
@@ -117,8 +108,8 @@ def bench(name, path, args, lines):
                          f"{secs / fit.seconds:.1f}x faster (goal >= 10x)")
         q = model.random_q(2000, seed=1)
         fitted.path_result(q[:10])
-        r_fit = _rate(lambda: fitted.path_result(q), len(q))
-        r_exact = _rate(lambda: model.path_result(q), len(q), 1)
+        r_fit = best_rate(lambda: fitted.path_result(q), len(q))
+        r_exact = best_rate(lambda: model.path_result(q), len(q), 1)
         r_osim = _opensim_exact_rate(path, q, 20 if model.wrapping is not None else 200)
         goal = f" (goal >= 1000x: {'met' if r_fit / r_osim >= 1000 else 'NOT met'})" if name == "Rajagopal2016" else ""
         lines.append(f"\nlengths + moment arms [configurations/s]: fitted {r_fit:,.0f}; pamkin exact {r_exact:,.0f}; "
