@@ -153,3 +153,24 @@ def test_unknown_path_class_is_named(fbp_file, tmp_path):
     with pytest.raises(UnsupportedFeatureError, match=r"path class <Scholz2015GeometryPath> is not supported") as e:
         load_osim_file(p)
     assert 'name="hamstrings_r"' in str(e.value)
+
+
+@pytest.mark.opensim
+def test_a_model_written_by_opensims_own_fitter(tmp_path):
+    """OpenSim 4.6's PolynomialPathFitter + ModOpReplacePathsWithFunctionBasedPaths: pamkin reads the result and
+    agrees with OpenSim on it to 1e-10 m."""
+    import subprocess
+    import sys
+
+    from locations import ROOT
+
+    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "opensim_path_fitter.py"), str(GAIT10),
+                           str(tmp_path / "fit"), "2", "40", "3"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    path = tmp_path / "fit" / "fitted.osim"
+    model = _load(path)
+    assert all(m.function_path is not None for m in model.osim.muscles)
+    q = model.random_q(20, seed=9)
+    ref = opensim_reference(path, q, ("lengths", "moment_arms"), pairs=model.pairs)
+    assert np.abs(model.lengths(q) - ref["lengths"]).max() < 1e-10
+    assert np.abs(model.path_result(q).moment_arms - ref["moment_arms"]).max() < 1e-10
