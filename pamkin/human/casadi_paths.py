@@ -106,24 +106,21 @@ def _rodrigues(axis: np.ndarray, angle: ca.SX) -> ca.SX:
 
 def body_placements(model: Model, q: list) -> tuple[list, list]:
     """(R, p) of every frame in :attr:`Kinematics.frames` (ground last) as CasADi expressions of ``q``."""
-    kin = model.kinematics
-    nj = kin.n_joints
+    t = model.kinematics.tree
+    nj = len(t.parent)
     R, p = [None] * (nj + 1), [None] * (nj + 1)
     R[nj], p[nj] = ca.SX.eye(3), ca.SX.zeros(3, 1)
     for j in range(nj):
-        v = scalar_function(kin._functions[j], q[kin.coord_of_joint[j]])
-        par = kin._parent[j]
-        Rp, pp = (R[nj], p[nj]) if par < 0 else (R[par], p[par])
-        Rb = ca.mtimes(Rp, ca.SX(kin._placement_R[j]))
-        pb = pp + ca.mtimes(Rp, ca.SX(kin._placement_p[j]))
-        a = kin._axis[j]
-        if kin._revolute[j]:
-            R[j], p[j] = ca.mtimes(Rb, _rodrigues(a, v)), pb
+        v = scalar_function(t.functions[j], q[t.coordinate[j]])
+        Rp, pp = (R[nj], p[nj]) if t.parent[j] < 0 else (R[t.parent[j]], p[t.parent[j]])
+        Rb = ca.mtimes(Rp, ca.SX(t.placement_R[j]))
+        pb = pp + ca.mtimes(Rp, ca.SX(t.placement_p[j]))
+        if t.revolute[j]:
+            R[j], p[j] = ca.mtimes(Rb, _rodrigues(t.axis[j], v)), pb
         else:
-            R[j], p[j] = Rb, pb + ca.mtimes(Rb, ca.SX(a)) * v
-    bR = [ca.mtimes(R[kin._body_joint[b]], ca.SX(kin._body_R[b])) for b in range(len(kin.frames))]
-    bp = [p[kin._body_joint[b]] + ca.mtimes(R[kin._body_joint[b]], ca.SX(kin._body_p[b]))
-          for b in range(len(kin.frames))]
+            R[j], p[j] = Rb, pb + ca.mtimes(Rb, ca.SX(t.axis[j])) * v
+    bR = [ca.mtimes(R[t.body_joint[b]], ca.SX(t.body_R[b])) for b in range(len(t.body_joint))]
+    bp = [p[t.body_joint[b]] + ca.mtimes(R[t.body_joint[b]], ca.SX(t.body_p[b])) for b in range(len(t.body_joint))]
     return bR, bp
 
 

@@ -65,6 +65,28 @@ class KinematicsState:
     body_p: np.ndarray
 
 
+@dataclass(frozen=True)
+class JointTree:
+    """The joint tree :meth:`Kinematics.forward` evaluates, as arrays (for other evaluators, e.g. CasADi's).
+
+    Joint j (one per variable OpenSim TransformAxis) sits at ``placement`` in its parent joint's frame (``parent``
+    -1: ground) and moves by v = ``functions[j]``(q[``coordinate[j]``]): a rotation about ``axis`` (``revolute``)
+    or a translation along it [rad or m]. Body frame b (:attr:`Kinematics.frames`, ground last) sits at
+    (``body_R``, ``body_p``) in joint ``body_joint[b]`` (index n_joints: ground).
+    """
+
+    parent: np.ndarray
+    placement_R: np.ndarray
+    placement_p: np.ndarray
+    axis: np.ndarray
+    revolute: np.ndarray
+    coordinate: np.ndarray
+    functions: tuple
+    body_joint: np.ndarray
+    body_R: np.ndarray
+    body_p: np.ndarray
+
+
 def _rodrigues(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """(N, 3, 3) rotations about a fixed unit ``axis`` (3,) by ``angle`` (N,) [rad]."""
     k = axis
@@ -169,6 +191,13 @@ class Kinematics:
                 j = self._parent[j]
         # coupling matrix structure: coordinate c drives joints J_c
         self.coord_of_joint = self._coord_of_joint
+
+    @property
+    def tree(self) -> JointTree:
+        """The joint tree (read-only copies of the arrays :meth:`forward` uses)."""
+        return JointTree(self._parent.copy(), self._placement_R.copy(), self._placement_p.copy(), self._axis.copy(),
+                         self._revolute.copy(), self._coord_of_joint.copy(), tuple(self._functions),
+                         self._body_joint.copy(), self._body_R.copy(), self._body_p.copy())
 
     # ------------------------------------------------------------------ inputs
     def as_q(self, q: ConfigLike, *, warn_range: bool = True) -> np.ndarray:
