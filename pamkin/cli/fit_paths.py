@@ -65,6 +65,9 @@ def cmd_fit_paths(args: argparse.Namespace) -> int:
     _check(args)
     out = Path(args.out) if args.out else Path.cwd() / f"{Path(args.osim).stem}_fitted.osim"
     check_output_file(out)                              # before any work
+    if out.exists() and Path(args.osim).exists() and out.resolve() == Path(args.osim).resolve():
+        raise ParameterError(f"--out {out} is the model file itself: the fitted model is written beside it, "
+                             "never over it")
     if args.report:
         check_output_folder(args.report, args.force)
     model = pamkin.load_osim(args.osim)
@@ -80,6 +83,9 @@ def cmd_fit_paths(args: argparse.Namespace) -> int:
 
         rom = (load_rom(args.rom, "r"), load_rom(args.rom, "l"))
     fit = fit_paths(model, muscles, args.max_order, args.samples, args.test_poses, tol, args.seed, rom=rom)
+    if not fit.muscles:
+        raise ParameterError(f"{args.osim}: no muscle path to fit (muscles with points that span a coordinate: "
+                             f"none{'; spanning none: ' + ', '.join(fit.skipped) if fit.skipped else ''})")
     print(f"fitted {len(fit.muscles)} muscles in {fit.seconds:.1f} s ({fit.n_samples} fitting poses, "
           f"{fit.n_test} held-out, over {fit.ranges}); within tolerance: {len(fit.muscles) - len(fit.missed)}")
     if args.report:

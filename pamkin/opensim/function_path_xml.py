@@ -8,6 +8,7 @@ written with 17 significant digits: the file holds the functions exactly.
 
 from __future__ import annotations
 
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -73,6 +74,9 @@ def function_path_element(path: FunctionPath, model: OsimModel) -> ET.Element:
 def with_function_paths(source: str | Path, model: OsimModel, paths: dict[str, FunctionPath]) -> str:
     """The text of ``source`` with the named muscles' geometry paths replaced by function-based paths.
 
+    The rest of the file is kept byte for byte (the replaced ``<GeometryPath>`` elements are cut out of the
+    text and the new elements put in their place).
+
     Args:
         source: The ``.osim`` file ``model`` was read from.
         model: The model read from it (for the coordinates' joints).
@@ -81,24 +85,35 @@ def with_function_paths(source: str | Path, model: OsimModel, paths: dict[str, F
     Raises:
         OsimError: A named muscle is not in the file's ForceSet or has no ``<GeometryPath>``.
     """
-    tree = ET.parse(source)
-    forces = tree.getroot().find("Model/ForceSet/objects")
-    found = {}
-    for f in [] if forces is None else list(forces):
-        if f.get("name") in paths:
-            found[f.get("name")] = f
-    missing = [m for m in paths if m not in found]
+    text = Path(source).read_bytes().decode("utf-8")
+    lo = text.find("<ForceSet")
+    hi = text.find("</ForceSet>", lo)
+    if lo < 0 or hi < 0:
+        raise OsimError(str(source), "has no <ForceSet>", element="Model")
+    cuts = []
+    missing = []
+    for name, path in paths.items():
+        m = re.search(rf'<(\w+)\s+name="{re.escape(name)}"\s*>', text[lo:hi])
+        if m is None:
+            missing.append(name)
+            continue
+        start = lo + m.start()
+        end = text.find(f"</{m.group(1)}>", start)
+        a = text.find("<GeometryPath", start, end)
+        b = text.find("</GeometryPath>", a, end)
+        if a < 0 or b < 0:
+            raise OsimError(str(source), "has no <GeometryPath> to replace", element=m.group(1), component=name)
+        indent = text[text.rfind("\n", 0, a) + 1:a]
+        cuts.append((a, b + len("</GeometryPath>"), _element_text(function_path_element(path, model), indent)))
     if missing:
         raise OsimError(str(source), f"no force named {', '.join(map(repr, missing))} in the ForceSet",
                         element="ForceSet")
-    for name, f in found.items():
-        gp = f.find("GeometryPath")
-        if gp is None:
-            raise OsimError(str(source), "has no <GeometryPath> to replace", element=f.tag, component=name)
-        i = list(f).index(gp)
-        f.remove(gp)
-        new = function_path_element(paths[name], model)
-        new.tail = gp.tail
-        f.insert(i, new)
-    ET.indent(tree, space="\t")
-    return ET.tostring(tree.getroot(), encoding="unicode", xml_declaration=True) + "\n"
+    for a, b, new in sorted(cuts, reverse=True):
+        text = text[:a] + new + text[b:]
+    return text
+
+
+def _element_text(el: ET.Element, indent: str) -> str:
+    """``el`` as indented XML text whose first line starts at the cursor and later lines at ``indent``."""
+    ET.indent(el, space="\t")
+    return ET.tostring(el, encoding="unicode").replace("\n", "\n" + indent)

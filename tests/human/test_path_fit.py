@@ -153,3 +153,13 @@ def test_poses_from_a_range_of_motion_stay_in_it():
 def test_cli_unknown_range_of_motion_exits_2(tmp_path, capsys):
     code = main(["fit-paths", str(GAIT10), "--rom", "nope", "--out", str(tmp_path / "x.osim")])
     assert code == 2 and "no range of motion 'nope'" in capsys.readouterr().err
+
+
+def test_cli_never_writes_over_the_model_and_says_when_nothing_fits(tmp_path, capsys):
+    src = tmp_path / "g.osim"
+    src.write_bytes(GAIT10.read_bytes())
+    assert main(["fit-paths", str(src), "--out", str(src)]) == 2
+    assert "is the model file itself" in capsys.readouterr().err and src.read_bytes() == GAIT10.read_bytes()
+    walker = SHARED / "opensim-models" / "Models" / "WalkerModel" / "WalkerModel.osim"
+    assert main(["fit-paths", str(walker), "--out", str(tmp_path / "w.osim")]) == 2
+    assert "no muscle path to fit" in capsys.readouterr().err and not (tmp_path / "w.osim").exists()
