@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pamkin.opensim.functions import MultivariatePolynomial, OneVariable, polynomial_exponents
+from pamkin.opensim.functions import MultivariatePolynomial, OneVariable, monomial_table, polynomial_exponents
 from pamkin.opensim.model_file import FunctionPath
 
 
@@ -105,7 +105,7 @@ class FunctionPaths:
         L = np.zeros((N, len(self.paths)))
         R = np.zeros((N, len(self.pairs))) if moment_arms else None
         for g in self._groups:
-            T = _monomials(q[:, g.columns], g.exponents)
+            T, _ = monomial_table(q[:, g.columns], g.exponents, derivatives=False)
             L[:, g.members] = T @ g.length
             if R is not None:
                 R[:, g.arm_pairs] = T @ g.arms
@@ -123,18 +123,6 @@ class FunctionPaths:
                 else -p.length.gradient(x))
         for i, c in enumerate(cols):
             R[:, self._pair_of[(k, c)]] = arms[:, i]
-
-
-def _monomials(x: np.ndarray, exponents: np.ndarray) -> np.ndarray:
-    """(N, n_terms) values of the monomials Π x_i^e_i at (N, d) points."""
-    order = int(exponents.max(initial=0))
-    P = np.ones((x.shape[0], x.shape[1], order + 1))
-    for p in range(1, order + 1):
-        P[:, :, p] = P[:, :, p - 1] * x
-    T = P[:, 0, exponents[:, 0]]
-    for i in range(1, x.shape[1]):
-        T = T * P[:, i, exponents[:, i]]
-    return T
 
 
 __all__ = ["FunctionPaths", "OneVariable"]

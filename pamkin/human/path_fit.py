@@ -4,7 +4,8 @@ Each muscle's length is fitted as a multivariate polynomial of the independent c
 (:attr:`pamkin.human.model.Model.pairs`) over the model's coordinate ranges, by least squares on its
 exact lengths *and* moment arms at random poses (a moment arm is −∂l/∂q of the same polynomial, so
 one coefficient vector fits both). The order rises from 1 until the muscle meets its tolerances on a
-separate set of held-out random poses, up to ``max_order``. The fitted model evaluates lengths and
+set of validation poses, up to ``max_order``; its errors are then measured on held-out poses that neither
+the fit nor the choice of order saw. The fitted model evaluates lengths and
 moment arms as matrix products (:mod:`pamkin.human.function_paths`).
 
 A path whose length jumps (OpenSim's ``ConditionalPathPoint``, e.g. Gait2392's iliacus and psoas at
@@ -23,7 +24,7 @@ import numpy as np
 from pamkin.errors import ConfigurationError
 from pamkin.human.model import Model
 from pamkin.human.rom import RangeOfMotion
-from pamkin.opensim.functions import MultivariatePolynomial, polynomial_exponents
+from pamkin.opensim.functions import MultivariatePolynomial, monomial_table, polynomial_exponents
 from pamkin.opensim.model_file import FunctionPath
 
 
@@ -40,6 +41,10 @@ class FitTolerance:
     length_rms: float = 1e-4
     length_max: float = 5e-4
     moment_arm_rms: float = 1e-3
+
+    def met(self, errors: tuple[float, ...]) -> bool:
+        """Whether (length RMS, length max, moment-arm RMS, ...) meet the tolerance."""
+        return errors[0] <= self.length_rms and errors[1] <= self.length_max and errors[2] <= self.moment_arm_rms
 
 
 @dataclass(frozen=True)
@@ -143,22 +148,6 @@ def uniform_poses(model: Model, n: int, seed: int, rom: Sequence[RangeOfMotion] 
     return model.kinematics.fill_dependent(q)
 
 
-def _design(x: np.ndarray, exps: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
-    """Monomial values (N, T) and their derivatives along each variable [(N, T)] at (N, d) points."""
-    order = int(exps.max(initial=0))
-    P = np.ones((x.shape[0], x.shape[1], order + 1))
-    for p in range(1, order + 1):
-        P[:, :, p] = P[:, :, p - 1] * x
-    cols = np.arange(x.shape[1])
-    T = np.prod(P[:, cols, exps], axis=2)
-    D = []
-    for i in range(x.shape[1]):
-        e = exps.copy()
-        e[:, i] = np.maximum(e[:, i] - 1, 0)
-        D.append(np.prod(P[:, cols, e], axis=2) * exps[:, i])
-    return T, D
-
-
 @dataclass
 class _Basis:
     """Monomials of d variables up to ``max_order``, sorted by total degree: the terms of every lower order
@@ -183,24 +172,44 @@ class _Basis:
                                                            for e in exps))
 
 
-def _fit_group(names: list[str], coords: list[str], x: np.ndarray, L: np.ndarray, R: np.ndarray,
-               xt: np.ndarray, Lt: np.ndarray, Rt: np.ndarray, tol: FitTolerance, max_order: int,
-               arm_weight: float) -> list[MuscleFit]:
+@dataclass
+class _Poses:
+    """Coordinates (N, d), lengths (N, m) and moment arms (N, d, m) of a group's m muscles at N poses."""
+
+    x: np.ndarray
+    L: np.ndarray
+    R: np.ndarray
+
+
+def _errors(basis: _Basis, T: np.ndarray, D: list[np.ndarray], k: int, c: np.ndarray, at: _Poses,
+            j: int) -> tuple[float, float, float, float]:
+    """(length RMS, length max, moment-arm RMS, moment-arm max) of muscle j's fit (first k terms)."""
+    eL = T[:, :k] @ c[:k] - at.L[:, j]
+    eR = np.stack([-(Di[:, :k] @ c[:k]) for Di in D], axis=1) - at.R[:, :, j]
+    return (float(np.sqrt(np.mean(eL ** 2))), float(np.abs(eL).max()),
+            float(np.sqrt(np.mean(eR ** 2))), float(np.abs(eR).max()))
+
+
+def _fit_group(names: list[str], coords: list[str], fit: _Poses, val: _Poses, test: _Poses, tol: FitTolerance,
+               max_order: int, arm_weight: float) -> list[MuscleFit]:
     """Fit the muscles spanning the same coordinates: shared samples, one QR of the design matrix.
 
-    ``L``/``Lt``: (N, m) lengths; ``R``/``Rt``: (N, d, m) moment arms of the m muscles.
+    The order is chosen on the validation poses ``val`` (the lowest that meets the tolerance there, else the one
+    with the smallest largest length error); the errors reported, and ``passed``, are those on ``test``, poses
+    the fit and the choice never saw.
     """
-    d = x.shape[1]
-    while max_order > 1 and len(polynomial_exponents(d, max_order)) * 2 > len(x) * (1 + d):
+    d = fit.x.shape[1]
+    while max_order > 1 and len(polynomial_exponents(d, max_order)) * 2 > len(fit.x) * (1 + d):
         max_order -= 1                                 # too few samples for this many coefficients
     basis = _Basis(d, max_order)
-    T, D = _design(x, basis.exps)
+    T, D = monomial_table(fit.x, basis.exps)
     A = np.vstack([T] + [-arm_weight * Di for Di in D])
     scale = np.linalg.norm(A, axis=0)
     scale[scale == 0] = 1.0
     Q, Rq = np.linalg.qr(A / scale)
-    QtB = Q.T @ np.vstack([L] + [arm_weight * R[:, i] for i in range(d)])
-    Tt, Dt = _design(xt, basis.exps)
+    QtB = Q.T @ np.vstack([fit.L] + [arm_weight * fit.R[:, i] for i in range(d)])
+    Tv, Dv = monomial_table(val.x, basis.exps)
+    Tt, Dt = monomial_table(test.x, basis.exps)
     out = []
     for j, name in enumerate(names):
         best = None
@@ -208,17 +217,15 @@ def _fit_group(names: list[str], coords: list[str], x: np.ndarray, L: np.ndarray
             k = basis.n_terms(order)
             c = np.zeros(len(basis.exps))
             c[:k] = np.linalg.lstsq(Rq[:k, :k], QtB[:k, j], rcond=None)[0] / scale[:k]
-            eL = Tt[:, :k] @ c[:k] - Lt[:, j]
-            eR = np.stack([-(Di[:, :k] @ c[:k]) for Di in Dt], axis=1) - Rt[:, :, j]
-            e = (float(np.sqrt(np.mean(eL ** 2))), float(np.abs(eL).max()),
-                 float(np.sqrt(np.mean(eR ** 2))), float(np.abs(eR).max()))
-            ok = e[0] <= tol.length_rms and e[1] <= tol.length_max and e[2] <= tol.moment_arm_rms
+            e = _errors(basis, Tv, Dv, k, c, val, j)
+            ok = tol.met(e)
             if ok or best is None or e[1] < best[0][1]:
-                best = (e, order, c, ok)
+                best = (e, order, c, k)
             if ok:
                 break
-        e, order, c, ok = best
-        out.append(MuscleFit(name, FunctionPath(tuple(coords), basis.polynomial(c, order)), *e, passed=ok))
+        _, order, c, k = best
+        e = _errors(basis, Tt, Dt, k, c, test, j)
+        out.append(MuscleFit(name, FunctionPath(tuple(coords), basis.polynomial(c, order)), *e, passed=tol.met(e)))
     return out
 
 
@@ -232,9 +239,11 @@ def fit_paths(model: Model, muscles: list[str] | None = None, max_order: int = 8
         muscles: Muscles to fit (default: every muscle with points).
         max_order: Highest polynomial order tried.
         n_samples: Random fitting poses (uniform over every coordinate's range).
-        n_test: Random held-out poses (another seed) the errors are measured on.
+        n_test: Random held-out poses (seed + 1) the errors are measured on, and as many validation poses
+            (seed + 2) on which each muscle's order is chosen: the reported errors come from poses neither the
+            fit nor the choice of order saw.
         tolerance: Per-muscle accuracy goals (default :class:`FitTolerance`).
-        seed: Seed of the fitting poses (held-out: seed + 1).
+        seed: Seed of the fitting poses.
         rom: Fit (and measure) within these ranges of motion (e.g. one per side) instead of the model's
             coordinate ranges, for the coordinates they name (:func:`uniform_poses`).
         arm_weight: Weight of the moment-arm residuals against the length residuals in the least squares
@@ -253,8 +262,8 @@ def fit_paths(model: Model, muscles: list[str] | None = None, max_order: int = 8
         if unknown:
             raise KeyError(f"unknown muscle(s) {unknown}; the model has {names}")
         chosen = [names.index(m) for m in muscles]
-    q, qt = uniform_poses(model, n_samples, seed, rom), uniform_poses(model, n_test, seed + 1, rom)
-    res, rest = model.path_result(q), model.path_result(qt)
+    poses = [uniform_poses(model, n, seed + k, rom) for k, n in ((0, n_samples), (2, n_test), (1, n_test))]
+    results = [model.path_result(q) for q in poses]
     pairs = {tuple(p): k for k, p in enumerate(model.pairs.tolist())}
     spans = spanned_coordinates(model)
     groups: dict[tuple[int, ...], list[int]] = {}
@@ -268,9 +277,9 @@ def fit_paths(model: Model, muscles: list[str] | None = None, max_order: int = 8
     for cols, ms in groups.items():
         c = list(cols)
         k = np.array([[pairs[(m, cc)] for m in ms] for cc in cols])          # (d, m)
-        for f in _fit_group([names[m] for m in ms], [model.coordinates[cc] for cc in cols], q[:, c],
-                            res.lengths[:, ms], res.moment_arms[:, k], qt[:, c], rest.lengths[:, ms],
-                            rest.moment_arms[:, k], tol, max_order, arm_weight):
+        sets = [_Poses(q[:, c], r.lengths[:, ms], r.moment_arms[:, k]) for q, r in zip(poses, results)]
+        for f in _fit_group([names[m] for m in ms], [model.coordinates[cc] for cc in cols], *sets, tol,
+                            max_order, arm_weight):
             fits[f.name] = f
     fits = [fits[names[m]] for m in chosen if names[m] in fits]
     ranges = f"range of motion {', '.join(r.name for r in rom)}" if rom else "the model's coordinate ranges"

@@ -240,6 +240,36 @@ def polynomial_exponents(dimension: int, order: int) -> np.ndarray:
     return np.array(list(terms(dimension, order)), dtype=np.int64).reshape(-1, dimension)
 
 
+def monomial_table(x: np.ndarray, exponents: np.ndarray,
+                   derivatives: bool = True) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Monomials Π x_i^e_ki at (N, d) points -> (N, n_terms), and their derivatives along each variable.
+
+    The one definition of a polynomial's terms: :class:`MultivariatePolynomial`, the batched evaluation of
+    function-based paths (:mod:`pamkin.human.function_paths`) and the path fitter use it.
+
+    Returns:
+        (T, D): T (N, n_terms); D a list of d arrays (N, n_terms), ∂T/∂x_i (empty without ``derivatives``).
+    """
+    x = np.asarray(x, dtype=float).reshape(len(x), -1)
+    order = int(exponents.max(initial=0))
+    P = np.ones((x.shape[0], x.shape[1], order + 1))
+    for p in range(1, order + 1):
+        P[:, :, p] = P[:, :, p - 1] * x
+
+    def product(e: np.ndarray) -> np.ndarray:
+        out = P[:, 0, e[:, 0]]
+        for i in range(1, x.shape[1]):
+            out = out * P[:, i, e[:, i]]
+        return out
+
+    D = []
+    for i in range(x.shape[1] if derivatives else 0):
+        e = exponents.copy()
+        e[:, i] = np.maximum(e[:, i] - 1, 0)
+        D.append(product(e) * exponents[:, i])
+    return product(exponents), D
+
+
 @dataclass(frozen=True)
 class MultivariatePolynomial:
     """OpenSim's ``MultivariatePolynomialFunction``: f(x₁ … x_d) = Σ c_k Π x_i^e_ki.
@@ -267,28 +297,16 @@ class MultivariatePolynomial:
         """(n_terms, dimension) exponents of the terms."""
         return self._exp
 
-    def _powers(self, x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x, dtype=float).reshape(-1, self.dimension)
-        return x[:, :, None] ** np.arange(self.order + 1)          # (N, d, order+1)
-
     def value(self, x: np.ndarray) -> np.ndarray:
         """f at (N, d) points -> (N,)."""
-        P = self._powers(x)
-        terms = np.prod(P[:, np.arange(self.dimension), self._exp], axis=2)    # (N, n_terms)
-        return terms @ np.asarray(self.coefficients, dtype=float)
+        T, _ = monomial_table(np.asarray(x, dtype=float).reshape(-1, self.dimension), self._exp)
+        return T @ np.asarray(self.coefficients, dtype=float)
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """∂f/∂x_i at (N, d) points -> (N, d)."""
-        P = self._powers(x)
-        dims = np.arange(self.dimension)
+        _, D = monomial_table(np.asarray(x, dtype=float).reshape(-1, self.dimension), self._exp)
         c = np.asarray(self.coefficients, dtype=float)
-        out = np.empty((P.shape[0], self.dimension))
-        for i in range(self.dimension):
-            e = self._exp.copy()
-            scale = e[:, i].astype(float)
-            e[:, i] = np.maximum(e[:, i] - 1, 0)
-            out[:, i] = np.prod(P[:, dims, e], axis=2) @ (c * scale)
-        return out
+        return np.stack([Di @ c for Di in D], axis=1)
 
 
 @dataclass(frozen=True)

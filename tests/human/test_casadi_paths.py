@@ -4,27 +4,21 @@ moment-arm functions, a coupled model)."""
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
+from locations import load_model as _load
+from opensim_ref import SHARED
 
 import pamkin
-from opensim_ref import SHARED
 from pamkin.errors import UnsupportedFeatureError
 from pamkin.human.casadi_paths import path_functions
 from pamkin.human.path_fit import fit_paths
 from pamkin.opensim.function_path_xml import with_function_paths
 from pamkin.opensim.functions import MultivariatePolynomial
-from pamkin.opensim.model_file import FunctionPath, SkippedComponentsWarning
+from pamkin.opensim.model_file import FunctionPath
 
 MODELS = SHARED / "opensim-models" / "Models"
 
-
-def _load(path):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", SkippedComponentsWarning)
-        return pamkin.load_osim(path)
 
 
 def _compare(model, f, q, names=None):

@@ -5,32 +5,26 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import warnings
 
 import numpy as np
 import pytest
+from locations import load_model as _load
+from opensim_ref import SHARED, opensim_reference
 
 import pamkin
-from opensim_ref import SHARED, opensim_reference
 from pamkin.cli import main
 from pamkin.human.path_fit import FitTolerance, fit_paths, uniform_poses
 from pamkin.opensim.function_path_xml import with_function_paths
-from pamkin.opensim.model_file import SkippedComponentsWarning
 
 GAIT10 = SHARED / "opensim-models" / "Models" / "Gait10dof18musc" / "gait10dof18musc.osim"
 pytestmark = pytest.mark.needs_shared
 
 
-def _load(path):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", SkippedComponentsWarning)
-        return pamkin.load_osim(path)
-
 
 @pytest.fixture(scope="module")
 def fitted(tmp_path_factory):
     model = _load(GAIT10)
-    fit = fit_paths(model, max_order=6, n_samples=1500, n_test=300)
+    fit = fit_paths(model, max_order=7, n_samples=1500, n_test=300)
     path = tmp_path_factory.mktemp("fit") / "gait10_fitted.osim"
     path.write_text(with_function_paths(GAIT10, model.osim, fit.paths()))
     return model, fit, path
@@ -62,7 +56,7 @@ def test_refitting_a_polynomial_path_reproduces_it(fitted):
     _, fit, path = fitted
     poly_model = _load(path)
     names = [m.name for m in fit.muscles if m.passed][:4]
-    again = fit_paths(poly_model, names, max_order=6, n_samples=600, n_test=200,
+    again = fit_paths(poly_model, names, max_order=7, n_samples=600, n_test=200,
                       tolerance=FitTolerance(1e-9, 1e-9, 1e-8))
     for m in again.muscles:
         assert m.passed and m.length_max < 1e-9 and m.moment_arm_max < 1e-8, m.name

@@ -8,11 +8,10 @@ import warnings
 
 import numpy as np
 import pytest
-
-import pamkin
+from locations import load_model as _load
 from opensim_ref import SHARED
+
 from pamkin.errors import ParameterError
-from pamkin.opensim.model_file import SkippedComponentsWarning
 
 PATH_ACTUATOR = SHARED / "opensim-models" / "Models" / "Gait10dof18musc" / "subject01_metabolics_path_actuator.osim"
 pytestmark = pytest.mark.needs_shared
@@ -71,11 +70,6 @@ def _spring_variant(tmp_path):
     p.write_text(text[:a] + spring + text[b:])
     return p
 
-
-def _load(path):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", SkippedComponentsWarning)
-        return pamkin.load_osim(path)
 
 
 @pytest.mark.opensim

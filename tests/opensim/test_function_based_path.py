@@ -6,13 +6,22 @@ import warnings
 
 import numpy as np
 import pytest
-
-import pamkin
+from locations import load_model as _load
 from opensim_ref import SHARED, opensim_reference
+
 from pamkin.errors import OsimError, UnsupportedFeatureError
 from pamkin.opensim.function_path_xml import with_function_paths
-from pamkin.opensim.functions import MultivariatePolynomial, OneVariable, SimmSpline, polynomial_exponents
-from pamkin.opensim.model_file import FunctionPath, SkippedComponentsWarning, load_osim_file
+from pamkin.opensim.functions import (
+    MultivariatePolynomial,
+    OneVariable,
+    SimmSpline,
+    polynomial_exponents,
+)
+from pamkin.opensim.model_file import (
+    FunctionPath,
+    SkippedComponentsWarning,
+    load_osim_file,
+)
 
 GAIT10 = SHARED / "opensim-models" / "Models" / "Gait10dof18musc" / "gait10dof18musc.osim"
 pytestmark = pytest.mark.needs_shared
@@ -48,11 +57,6 @@ def fbp_file(tmp_path_factory):
     path.write_text(with_function_paths(GAIT10, osim, _paths(np.random.default_rng(4))))
     return path
 
-
-def _load(path):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", SkippedComponentsWarning)
-        return pamkin.load_osim(path)
 
 
 @pytest.mark.opensim
