@@ -12,7 +12,8 @@ def add_parsers(sub) -> None:
         description="Fit each muscle's length as a multivariate polynomial of the independent coordinates it spans "
                     "(OpenSim's MultivariatePolynomialFunction), by least squares on pamkin's exact lengths and "
                     "moment arms (wrapping included) at random poses uniform over the coordinate ranges; the order "
-                    "rises until the muscle meets the tolerance on separate held-out random poses. Writes the "
+                    "rises until the muscle meets the tolerance on validation poses, and its errors are measured on "
+                    "held-out poses neither the fit nor that choice saw. Writes the "
                     "model with a FunctionBasedPath in place of each fitted GeometryPath (OpenSim 4.6 loads and "
                     "simulates it). If a muscle misses the tolerance, its name and errors are printed and nothing "
                     "is written (exit 1) unless --keep-unfitted keeps its exact path.")
@@ -26,11 +27,12 @@ def add_parsers(sub) -> None:
     s.add_argument("--muscles", metavar="A,B,...", help="fit only these muscles (default: every muscle with points)")
     s.add_argument("--max-order", type=int, default=8, help="highest polynomial order tried (1-12, default 8)")
     s.add_argument("--samples", type=int, default=4000, help="random fitting poses (100-200000, default 4000)")
-    s.add_argument("--test-poses", type=int, default=1000, help="held-out random poses (10-200000, default 1000)")
+    s.add_argument("--test-poses", type=int, default=1000, help="held-out random poses, and as many validation poses (10-200000, default 1000)")
     s.add_argument("--rom", metavar="NAME", help="draw the poses from this range of motion of robot/data/rom.yaml "
                                                  "(robot_thesis, robot_2026, human_thesis; side-less names apply "
                                                  "to both legs) (default: the model's coordinate ranges)")
-    s.add_argument("--seed", type=int, default=0, help="seed of the fitting poses (held-out: seed + 1; default 0)")
+    s.add_argument("--seed", type=int, default=0, help="seed of the fitting poses (held-out: seed + 1, validation: seed + 2; "
+                                                            "default 0)")
     s.add_argument("--length-rms", type=float, default=0.1, help="tolerance: length RMS [mm] (default 0.1)")
     s.add_argument("--length-max", type=float, default=0.5, help="tolerance: largest length error [mm] (default 0.5)")
     s.add_argument("--moment-arm-rms", type=float, default=1.0, help="tolerance: moment-arm RMS [mm] (default 1)")
