@@ -246,12 +246,27 @@ class Separate:
     poses: int = key(60, "random poses (the stage's own stream) the gaps are enforced at", 1, 5000)
 
 
+@dataclass
+class Rack:
+    """``[rack]``: the rack stage (needs [bone_rounds] for the bone meshes)."""
+
+    enabled: bool = key(False, "every PAM body hung on brackets along a bone of its route's end (routes and moment "
+                               "arms unchanged), the layout chosen for all PAMs at once")
+    gap_m: float = key(0.005, "least gap between two PAM bodies and between a PAM body and bone [m]", 0, 0.1)
+    bracket_max_m: float = key(0.05, "farthest a rack bracket (anchor, guide pulley) may be from its bone [m]", 0, 0.2)
+    angles: int = key(16, "sides of the bone tried around its axis", 4, 64)
+    poses: int = key(60, "random poses (the stage's own stream) the layout is checked at", 1, 5000)
+    gait: bool = key(True, "check the layout at the poses of the audit's walking trial too (left against right)")
+    gait_stride: int = key(6, "every n-th frame of the walking trial", 1, 1000)
+    time_limit_s: float = key(120.0, "time limit of the layout's integer program [s]", 1, 3600)
+
+
 #: Section name -> its dataclass, in the order of the reference page.
 SECTIONS: dict[str, type] = {
     "samples": Samples, "weights": Weights, "limits": Limits, "first_fit": FirstFit, "unit_budget": UnitBudget,
     "bone_rounds": BoneRounds, "mount": Mount, "resize": Resize, "reallocate": Reallocate, "mass": Mass,
     "walking": Walking, "clearance": Clearance, "rollers": Rollers, "detours": Detours, "pam_ends": PamEnds,
-    "separate": Separate,
+    "separate": Separate, "rack": Rack,
 }
 #: Per-actuator tables (free keys, checked by :meth:`RunConfig.validate`).
 TABLES = ("regions", "transmission", "eyelets")
@@ -302,6 +317,7 @@ class RunConfig:
     detours: Detours = field(default_factory=Detours)
     pam_ends: PamEnds = field(default_factory=PamEnds)
     separate: Separate = field(default_factory=Separate)
+    rack: Rack = field(default_factory=Rack)
     regions: dict = key(None, "per actuator or per point: '6' = 0.08, '6.p2' = [0.02, 0.02, 0.0] (box half-widths "
                               "[m])", factory=dict)
     transmission: dict = key(None, "per actuator: '4' = 2 puts a 2:1 pulley block on its PAM (default: the seed "

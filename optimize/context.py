@@ -60,6 +60,7 @@ class RunContext:
         walking: The walking stage's report.
         pam_ends: The pam_ends stage's report lines.
         separation: The separate stage's report lines.
+        rack: The rack stage's report lines.
         stream: Where progress goes (run process only).
         executor: Runs the per-actuator tasks (run process only; :mod:`optimize.executor`).
         store: The run folder's store of finished tasks (run process only; :mod:`optimize.store`).
@@ -81,6 +82,7 @@ class RunContext:
     walking: dict | None = None
     pam_ends: list[str] = field(default_factory=list)
     separation: list[str] = field(default_factory=list)
+    rack: list[str] = field(default_factory=list)
     stream: Any = None
     executor: Any = None
     store: Any = None

@@ -46,6 +46,7 @@ from pamkin.optimize.stages import (
     first_fit,
     mass,
     pam_ends,
+    rack,
     reallocate,
     resize,
     rollers,
@@ -106,6 +107,8 @@ STAGES: tuple[Stage, ...] = (
           "each PAM's segment and end chosen for the fewest intersecting PAM pairs"),
     Stage("separate", separate.run, lambda c: c.bone_rounds.enabled and c.separate.enabled,
           "mount-segment ends moved on their brackets until PAM bodies are 5 mm apart and 5 mm from bone"),
+    Stage("rack", rack.run, lambda c: c.bone_rounds.enabled and c.rack.enabled,
+          "every PAM body hung on brackets along a bone of its route's end, the whole layout chosen at once"),
 )
 #: Files of a run folder a new run writes (an existing folder holding any of them is not overwritten).
 RUN_FILES = ("design.yaml", "summary.json", "log.txt", "before_after.png", "config.json")
@@ -223,6 +226,7 @@ def run(cfg: RunConfig, out_dir: Path, apply: str | os.PathLike | None = None, s
                       seed_label=f"warm start ({Path(cfg.warm_start).name})" if warm_ids else None)
     log.extend(ctx.pam_ends)
     log.extend(ctx.separation)
+    log.extend(ctx.rack)
     log.extend(f"fit limits: {line}" for line in summary.get("fit_limits_and_bone", []))
     log.append(f"total {summary['total_seconds']} s (solves {solve_seconds:.1f} s)")
     write_file(out_dir / "log.txt", "\n".join(log) + "\n")
@@ -284,6 +288,8 @@ def _report(ctx: RunContext, results: list[ActuatorResult], seed: Design, new: D
         summary["pam_ends"] = ctx.pam_ends
     if ctx.separation:
         summary["separation"] = ctx.separation
+    if ctx.rack:
+        summary["rack"] = ctx.rack
     if ctx.walking:
         summary["walking_check"] = ctx.walking      # optimize.stages.walking: fractions between the trial's frames
     return summary

@@ -73,6 +73,7 @@ from pamkin.robot.pam_body import (
     segment_names,
 )
 from pamkin.robot.rollers import open_ended, roller_axis_points
+from pamkin.robot.rack import ANCHOR, GUIDE
 from pamkin.yamlio import strict_load
 
 #: Random stream of the audit's poses (``SeedSequence(seed, spawn_key=(AUDIT_STREAM,))``); an
@@ -84,6 +85,8 @@ LIMITS_FILE = data_file("audit_limits.yaml")
 GAIT_IK = SHARED_DIR / "gait" / "subject01_walk1_ik.mot"
 #: A PAM pair counts as intersecting when its capsules overlap by more than this [m].
 CLEARANCE_TOLERANCE = 1e-4
+#: Names of the route points that are a rack's brackets (checked against ``rack_bracket_max_m``).
+RACK_POINTS = (ANCHOR, GUIDE)
 #: Linearisation step of the sensitivity [m] (the result is scaled to a 1 mm error).
 SENSITIVITY_STEP = 1e-4
 
@@ -769,7 +772,9 @@ def _bone_checks(right: PamRobot, bones, sets: list, rows: list[dict], step: flo
         row["points_inside_own_bone"] = sum(1 for p in fixed if p["own_bone_distance_m"] < 0)
         row["points_inside_any_bone"] = sum(1 for p in pts_info + rollers if p["min_any_bone_distance_m"] is not None
                                             and p["min_any_bone_distance_m"] < 0)
-        row["points_over_bracket"] = sum(1 for p in fixed if p["own_bone_distance_m"] > thr["bracket_max_m"])
+        # a rack's brackets (pamkin.robot.rack) may stand farther out than an attachment point
+        row["points_over_bracket"] = sum(1 for p in fixed if p["own_bone_distance_m"] > (
+            thr["rack_bracket_max_m"] if p["name"] in RACK_POINTS else thr["bracket_max_m"]))
         row["max_bracket_m"] = max((p["own_bone_distance_m"] for p in fixed), default=None)
         segs = []
         for name in segment_names(pam):

@@ -29,6 +29,7 @@ from pamkin.robot import festo
 from pamkin.robot.biped import PamRobot, robot_skeleton
 from pamkin.robot.design import Design, pam_unit_mass, pams_mass
 from pamkin.robot.pam_body import route_positions, segment_names
+from pamkin.robot.rack import ANCHOR, GUIDE
 from pamkin.viz.meshcat_view import PLACEMENT_POSES, pam_placements
 
 __all__ = ["CONNECTIONS", "FORMAT", "build_sheet", "festo_designation"]
@@ -53,6 +54,10 @@ def _role(pam, i: int) -> str:
         return "moving point"
     if isinstance(pt, ConditionalPathPoint):
         return "conditional guide"
+    if pt.name == ANCHOR:
+        return "rack anchor"         # pamkin.robot.rack: the bracket holding the PAM's far end
+    if pt.name == GUIDE:
+        return "rack guide pulley"   # the pulley turning the cable from the PAM to the route's end
     if i == 0:
         return "origin anchor"
     if i == len(pam.points) - 1:

@@ -1,0 +1,341 @@
+"""Where every PAM body hangs: rack candidates on each PAM's host bones and one joint choice for all of them.
+
+Every PAM is hung on a rack (:mod:`pamkin.robot.rack`) at one end of its route: the body lies along its host
+bone (the host frame's y axis, towards the bone's middle), beside the route's end point, on brackets. The
+candidates of a PAM (:func:`candidates`) vary the side of the bone (``angles`` around the axis), the
+bracket height and the shift along the bone; a candidate is kept only where, over every pose sampled,
+
+* its body (a capsule of the PAM's largest outer radius, :func:`pamkin.audit.assembly.body_radius`, and the
+  PAM's resting length plus both fittings) keeps ``gap`` from every bone — its host's at one pose, since
+  it is fixed there, the others at every pose;
+* both brackets (anchor and guide) lie within ``bracket_max`` of the host's bone and outside it;
+* the cable piece from the guide to the route's end clears the host's bone.
+
+Two candidates of different PAMs conflict where their bodies come closer than ``gap`` at any pose (same
+host: once; different hosts: over the poses; right against the mirrored left over the walking poses).
+:func:`choose` then picks at most one candidate per PAM, no two in conflict, the most PAMs first and the
+lowest brackets next: an integer program (HiGHS through :func:`scipy.optimize.milp`), all PAMs at once.
+Lengths in metres.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import Bounds, LinearConstraint, milp
+from scipy.sparse import coo_matrix
+from scipy.sparse import vstack as sparse_vstack
+
+from pamkin.audit.assembly import BODY_GAP_M, body_radius
+from pamkin.human.bones import segment_distances
+from pamkin.opensim.model_file import PathPoint
+from pamkin.robot.biped import placements
+from pamkin.robot.design import mirror_name
+from pamkin.robot.pam_body import pam_capsules
+from pamkin.robot.rack import RackMount, has_rack, rack_pam, route_end
+
+#: Largest distance of a bracket (anchor, guide) from its bone [m] (issue: brackets up to 50 mm).
+BRACKET_MAX_M = 0.05
+#: Cable between the body's near end and the guide pulley at rest [m].
+SLACK_M = 0.01
+#: Spacing of the points along a body or cable checked against bone [m].
+STEP_M = 0.005
+#: Extra clearance a candidate keeps from the other bones at the sampled poses, for the poses between them [m].
+MARGIN_M = 0.002
+
+
+@dataclass
+class Candidate:
+    """One place for one PAM's body.
+
+    Attributes:
+        pam: Index of the PAM in the design.
+        mount: The rack.
+        radius: Body radius [m].
+        a, b: (3,) body axis ends in the host frame (a: the anchor end) [m].
+        bracket: The larger of the anchor's and the guide's distance from bone [m].
+        route_end: (3,) the route's end point the guide turns the cable to (host frame) [m].
+    """
+
+    pam: int
+    mount: RackMount
+    radius: float
+    a: np.ndarray
+    b: np.ndarray
+    bracket: float
+    route_end: tuple = (0.0, 0.0, 0.0)
+
+
+def _frame(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors completing ``u`` to an orthonormal frame."""
+    t = np.array([1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    e1 = np.cross(u, t)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(u, e1)
+
+
+def _axis_points(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
+    n = max(2, int(np.ceil(np.linalg.norm(b - a) / step)) + 1)
+    t = np.linspace(0.0, 1.0, n)
+    return a[None] + t[:, None] * (b - a)[None]
+
+
+def candidates(k: int, pam, end: str, bones, fitting: float, angles: int = 16,
+               heights=(0.01, 0.02, 0.03, 0.045, 0.06, 0.08), shifts=(0.0, 0.04, 0.08),
+               gap: float = BODY_GAP_M, bracket_max: float = BRACKET_MAX_M, both_ways: bool = True
+               ) -> list[Candidate]:
+    """Rack candidates of PAM ``k`` at its route's ``end`` passing the host-frame checks of the module
+    docstring (the pose-dependent ones: :func:`keep_clear`). ``heights``: offsets of the guide from the route's
+    end point across the body's direction [m]; ``shifts``: along it [m]; the body runs from the guide along the
+    host frame's y axis towards the bone's middle and, with ``both_ways``, along every other axis direction too
+    (the checks keep the ones that fit)."""
+    g = route_end(pam, end)
+    if type(g) is not PathPoint or not bones.meshes.get(g.body):
+        return []
+    host, G = g.body, np.asarray(g.location, float)
+    V = np.concatenate([m.vertices for m in bones.meshes[host]])
+    mid = 0.5 * (V[:, 1].min() + V[:, 1].max())
+    towards = 1.0 if mid > G[1] else -1.0
+    r = body_radius(pam.diameter_mm)
+    length = pam.resting_length_m + 2 * fitting
+    axes = [np.array([0.0, towards, 0.0])]
+    if both_ways:
+        axes += [np.array([0.0, -towards, 0.0])] + [s * e for e in np.eye(3)[[0, 2]] for s in (1.0, -1.0)]
+    out = []
+    for u in axes:
+        out += _ring(k, end, host, G, u, r, length, bones, angles, heights, shifts, gap, bracket_max)
+    return out
+
+
+def _ring(k, end, host, G, u, r, length, bones, angles, heights, shifts, gap, bracket_max) -> list[Candidate]:
+    """The candidates of one direction ``u`` along the host bone (:func:`candidates`)."""
+    e1, e2 = _frame(u)
+    out = []
+    for phi in np.linspace(0.0, 2 * np.pi, angles, endpoint=False):
+        w = np.cos(phi) * e1 + np.sin(phi) * e2
+        for h in heights:
+            for s in shifts:
+                guide = G + h * w + s * u
+                near = guide + SLACK_M * u
+                anchor = near + length * u
+                c = _host_check(bones, host, G, guide, anchor, near, r, gap, bracket_max)
+                if c is not None:
+                    out.append(Candidate(k, RackMount(end, host, tuple(anchor), tuple(guide)), r, anchor, near, c,
+                                          tuple(G)))
+    return out
+
+
+def _host_check(bones, host, G, guide, anchor, near, r, gap, bracket_max) -> float | None:
+    """Bracket height [m] where the candidate passes its host-frame checks, else None."""
+    d_br = bones.body_closest(host, np.vstack([anchor, guide]))[0]
+    if not (np.all(d_br > 0) and np.all(d_br <= bracket_max)):
+        return None
+    body = _axis_points(anchor, near, STEP_M)
+    if np.min(bones.body_closest(host, body, far=r + gap + 0.01)[0]) < r + gap:
+        return None
+    cable = _axis_points(guide, G, STEP_M)[1:-1]
+    if len(cable) and np.min(bones.body_closest(host, cable, far=0.01)[0]) < 0.001:
+        return None
+    return float(np.max(d_br))
+
+
+def world(cands: list[Candidate], state, kin) -> tuple[np.ndarray, np.ndarray]:
+    """(S, C, 3) world positions of the candidates' axis ends at the poses of ``state``."""
+    idx = np.array([kin.frames.index(c.mount.host) for c in cands])
+    A = np.stack([c.a for c in cands])
+    B = np.stack([c.b for c in cands])
+    R, p = state.body_R[:, idx], state.body_p[:, idx]
+    return np.einsum("scij,cj->sci", R, A) + p, np.einsum("scij,cj->sci", R, B) + p
+
+
+def keep_clear(cands: list[Candidate], bones, state, kin, gap: float = BODY_GAP_M,
+               bodies: list[str] | None = None, margin: float = MARGIN_M) -> list[Candidate]:
+    """The candidates whose bodies keep ``gap + margin`` from every bone but their host's, and whose cable piece
+    (guide → route end) stays out of them, at every pose of ``state``."""
+    if not cands:
+        return []
+    Aw, Bw = world(cands, state, kin)
+    Gw, Ew = world([dataclasses.replace(c, a=np.asarray(c.mount.guide), b=_end_point(c)) for c in cands], state, kin)
+    keep = []
+    for i, c in enumerate(cands):
+        others = [b for b in (bodies or bones.bodies) if b != c.mount.host]
+        P = _along(Aw[:, i], Bw[:, i])
+        d = bones.signed_distance(state, P, margin=c.radius + gap + margin + 0.01, bodies=others, prune=True)[0]
+        if np.min(d) < c.radius + gap + margin:
+            continue
+        C = _along(Gw[:, i], Ew[:, i])[:, 1:-1]
+        if C.shape[1] and np.min(bones.signed_distance(state, C, margin=0.01, bodies=others, prune=True)[0]) < 0.001:
+            continue
+        keep.append(c)
+    return keep
+
+
+def _along(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """(S, K, 3) points every :data:`STEP_M` or closer from ``A`` to ``B`` (S, 3)."""
+    n = max(2, int(np.ceil(np.max(np.linalg.norm(B - A, axis=1)) / STEP_M)) + 1)
+    t = np.linspace(0.0, 1.0, n)
+    return A[:, None] + t[None, :, None] * (B - A)[:, None]
+
+
+def _end_point(c: Candidate) -> np.ndarray:
+    """The route end point a candidate's guide turns the cable to (host frame)."""
+    return np.asarray(c.route_end, float)
+
+
+def conflicts(cands: list[Candidate], states: list, kin, gap: float = BODY_GAP_M,
+              mirrored: tuple | None = None) -> np.ndarray:
+    """(P, 2) index pairs of candidates (of different PAMs) whose bodies come closer than ``gap``: same host
+    in the host frame, else over the poses of every state in ``states``; ``mirrored`` = (state, mirror
+    function) adds right-against-left pairs (a candidate against every mirrored one, its own included)."""
+    C = len(cands)
+    pam = np.array([c.pam for c in cands])
+    rad = np.array([c.radius for c in cands])
+    i, j = np.triu_indices(C, 1)
+    keep = pam[i] != pam[j]
+    i, j = i[keep], j[keep]
+    close = np.zeros(len(i), dtype=bool)
+    for st in states:
+        Aw, Bw = world(cands, st, kin)
+        for s in range(len(Aw)):
+            todo = np.flatnonzero(~close)
+            d = segment_distances(Aw[s, i[todo]], Bw[s, i[todo]], Aw[s, j[todo]], Bw[s, j[todo]])
+            close[todo[d < rad[i[todo]] + rad[j[todo]] + gap]] = True
+    out = [np.stack([i[close], j[close]], axis=1)]
+    if mirrored is not None:
+        st, mirror = mirrored
+        left = [mirror(c) for c in cands]
+        Ar, Br = world(cands, st, kin)
+        Al, Bl = world(left, st, kin)
+        ii, jj = np.meshgrid(np.arange(C), np.arange(C), indexing="ij")
+        ii, jj = ii.ravel(), jj.ravel()
+        hit = np.zeros(len(ii), dtype=bool)
+        for s in range(len(Ar)):
+            todo = np.flatnonzero(~hit)
+            d = segment_distances(Ar[s, ii[todo]], Br[s, ii[todo]], Al[s, jj[todo]], Bl[s, jj[todo]])
+            hit[todo[d < rad[ii[todo]] + rad[jj[todo]] + gap]] = True
+        out.append(np.stack([ii[hit], jj[hit]], axis=1))
+    return np.concatenate(out) if out else np.zeros((0, 2), int)
+
+
+def choose(cands: list[Candidate], pairs: np.ndarray, n_pams: int, time_limit: float = 120.0
+           ) -> dict[int, Candidate]:
+    """At most one candidate per PAM, no conflicting pair (``pairs`` from :func:`conflicts`; a pair of a
+    candidate with itself forbids it), the most PAMs placed and, among those, the lowest brackets:
+    ``{pam index: candidate}``."""
+    C = len(cands)
+    if C == 0:
+        return {}
+    self_hit = pairs[:, 0] == pairs[:, 1]
+    ub = np.ones(C)
+    ub[pairs[self_hit, 0]] = 0.0
+    pairs = pairs[~self_hit]
+    pams = np.array([c.pam for c in cands])
+    rows = [coo_matrix((np.ones(C), (pams, np.arange(C))), shape=(n_pams, C))]
+    if len(pairs):
+        P = len(pairs)
+        rows.append(coo_matrix((np.ones(2 * P), (np.repeat(np.arange(P), 2), pairs.ravel())), shape=(P, C)))
+    A = sparse_vstack(rows).tocsr()
+    bracket = np.array([c.bracket for c in cands])
+    cost = -1.0 + 0.1 * bracket / BRACKET_MAX_M
+    res = milp(cost, constraints=LinearConstraint(A, -np.inf, 1.0), integrality=np.ones(C),
+               bounds=Bounds(0.0, ub), options={"time_limit": time_limit})
+    if res.x is None:
+        return {}
+    return {cands[c].pam: cands[c] for c in np.flatnonzero(res.x > 0.5)}
+
+
+@dataclass
+class RackReport:
+    """What :func:`layout` did: the PAMs hung on racks ``{pam id: candidate}``, the ones left on their routes
+    (no candidate, or every candidate in conflict), the candidates and conflicts counted, the rounds."""
+
+    placed: dict
+    unplaced: list[int]
+    candidates: int
+    conflicts: int
+    rounds: int
+
+
+def mirror_candidate(c: Candidate) -> Candidate:
+    """The left side's copy of a right-side candidate (host mirrored, z negated)."""
+    def f(v):
+        return np.array([v[0], v[1], -v[2]], float)
+    m = RackMount(c.mount.end, mirror_name(c.mount.host), tuple(f(c.mount.anchor)), tuple(f(c.mount.guide)))
+    return Candidate(c.pam, m, c.radius, f(c.a), f(c.b), c.bracket, tuple(f(c.route_end)))
+
+
+def _route_bodies(design, model, q: np.ndarray, ks) -> list[list]:
+    """Per PAM the body pieces on its route (as the audit places them) at poses ``q``."""
+    out = []
+    for (place, pts, length) in placements(design, model, q):
+        out.append(pam_capsules(pts, place.segment, length + 2 * design.fitting_length_m, place.side))
+    return out
+
+
+def _clear_of(cands: list[Candidate], pieces: list, radii: list[float], state, kin, gap: float) -> list[Candidate]:
+    """The candidates that keep ``gap`` from every body of ``pieces`` (route bodies at the poses of ``state``)."""
+    if not cands or not pieces:
+        return cands
+    Aw, Bw = world(cands, state, kin)
+    ok = np.ones(len(cands), dtype=bool)
+    for body, r in zip(pieces, radii):
+        for A, B, valid in body:
+            for s in np.flatnonzero(valid):
+                d = segment_distances(Aw[s], Bw[s], np.repeat(A[s][None], len(cands), 0),
+                                      np.repeat(B[s][None], len(cands), 0))
+                ok &= d >= np.array([c.radius for c in cands]) + r + gap
+    return [c for c, k in zip(cands, ok) if k]
+
+
+def layout(design, model, bones, q_random: np.ndarray, q_gait: np.ndarray, gap: float = BODY_GAP_M,
+           bracket_max: float = BRACKET_MAX_M, angles: int = 16, time_limit: float = 120.0, rounds: int = 1,
+           say=None):
+    """Every PAM of ``design`` hung on the rack :func:`choose` gives it, the others left on their routes:
+    ``(new design, RackReport)``. Candidates (:func:`candidates`) are checked at the random poses (right-leg
+    bones) and the walking poses (every bone); conflicts over both, right against left over the walking
+    poses. The PAMs left on their routes are obstacles: candidates closer than ``gap`` to their bodies are
+    dropped and the choice made again (at most ``rounds`` times)."""
+    kin = model.kinematics
+    st, sg = kin.forward(q_random, warn_range=False), kin.forward(q_gait, warn_range=False)
+    right = [b for b in bones.bodies if not b.endswith("_l")]
+    pool = []
+    for k, p in enumerate(design.pams):
+        if has_rack(p):
+            continue
+        for end in ("origin", "insertion"):
+            c = candidates(k, p, end, bones, design.fitting_length_m, angles=angles, gap=gap,
+                           bracket_max=bracket_max)
+            c = keep_clear(c, bones, st, kin, gap, right)
+            pool += keep_clear(c, bones, sg, kin, gap) if len(q_gait) else c
+    if say:
+        say(f"rack: {len(pool)} candidates for {len({c.pam for c in pool})} of {len(design.pams)} PAMs")
+    states = [st, sg] if len(q_gait) else [st]
+    pairs = conflicts(pool, states, kin, gap, mirrored=(sg, mirror_candidate) if len(q_gait) else None)
+    n_pairs = len(pairs)
+    pick, done = {}, 0
+    for done in range(1, rounds + 1):
+        pick = choose(pool, pairs, len(design.pams), time_limit)
+        left = [k for k in range(len(design.pams)) if k not in pick]
+        if not left:
+            break
+        bodies = _route_bodies(design, model, np.vstack([q_random, q_gait]), None)
+        radii = [body_radius(p.diameter_mm) for p in design.pams]
+        st_all = kin.forward(np.vstack([q_random, q_gait]), warn_range=False)
+        kept = _clear_of(pool, [bodies[k] for k in left], [radii[k] for k in left], st_all, kin, gap)
+        if len(kept) == len(pool):
+            break
+        index = {id(c): i for i, c in enumerate(pool)}
+        keep_ids = np.array([index[id(c)] for c in kept])
+        remap = np.full(len(pool), -1)
+        remap[keep_ids] = np.arange(len(kept))
+        pairs = remap[pairs]
+        pairs = pairs[(pairs >= 0).all(axis=1)]
+        pool = kept
+    new = design
+    for k, c in pick.items():
+        new = new.replace_pam(rack_pam(design.pams[k], c.mount))
+    placed = {design.pams[k].id: c for k, c in pick.items()}
+    unplaced = [p.id for k, p in enumerate(design.pams) if k not in pick]
+    return new, RackReport(placed, unplaced, len(pool), n_pairs, done)

@@ -1,0 +1,40 @@
+"""Rack stage (``[rack] enabled``): every PAM body hung on brackets along a bone of its route's end, the whole
+leg's layout chosen at once (:func:`pamkin.optimize.rack_layout.layout`); routes, moment arms and PAM strains
+stay as the earlier stages left them (:mod:`pamkin.robot.rack`)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from pamkin.audit.measure import GAIT_IK, gait_poses, random_poses
+from pamkin.optimize.context import RunContext
+from pamkin.optimize.rack_layout import layout
+from pamkin.optimize.results import ActuatorResult
+
+#: Random stream of the stage's poses (never the audit's).
+RACK_STREAM = 0xA0D8
+
+
+def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
+    """``results`` with the racked routes; the report lines in ``ctx.rack``."""
+    cfg = ctx.cfg.rack
+    design = ctx.seed_design
+    for r in results:
+        design = design.replace_pam(r.pam)
+    q = random_poses(ctx.human, ctx.rom, cfg.poses, ctx.cfg.seed, stream=RACK_STREAM)
+    qg = gait_poses(ctx.human, GAIT_IK, stride=cfg.gait_stride)[0] if cfg.gait else q[:0]
+
+    def say(line: str) -> None:
+        print(line, file=ctx.stream, flush=True)
+    new, rep = layout(design, ctx.human, ctx.bones, q, qg, gap=cfg.gap_m, bracket_max=cfg.bracket_max_m,
+                      angles=cfg.angles, time_limit=cfg.time_limit_s, say=say)
+    lines = [f"rack: {len(rep.placed)} of {len(design.pams)} PAMs hung on racks ({rep.candidates} candidates, "
+             f"{rep.conflicts} conflicting pairs, {rep.rounds} rounds); left on their routes: "
+             + (", ".join(f"{i} {design.pam(i).name}" for i in rep.unplaced) or "none")]
+    lines += [f"rack: actuator {i} {design.pam(i).name} on {c.mount.host} at its {c.mount.end}, bracket "
+              f"{1000 * c.bracket:.1f} mm" for i, c in sorted(rep.placed.items())]
+    for line in lines:
+        say(line)
+    ctx.rack = lines
+    ids = {r.id for r in results}
+    return [dataclasses.replace(r, pam=new.pam(r.id)) if r.id in ids else r for r in results]

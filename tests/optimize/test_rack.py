@@ -1,0 +1,173 @@
+"""Racks (pamkin.robot.rack) and the rack layout (pamkin.optimize.rack_layout): a rack changes no moment arm
+and no PAM length; two toy PAMs whose routes coincide end on racks apart by the gap; a toy body keeps the gap
+from a toy bone; the capstan factor by hand."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from pamkin.audit.assembly import BODY_GAP_M, body_distances, body_radius, bone_clearance
+from pamkin.human.bones import BoneSet
+from pamkin.opensim.model_file import PathPoint
+from pamkin.optimize.rack_layout import candidates, layout
+from pamkin.robot.biped import PamRobot, placements, robot_skeleton
+from pamkin.robot.design import Design, load_design
+from pamkin.robot.pam_body import pam_capsules
+from pamkin.robot.rack import RackMount, capstan_efficiency, has_rack, rack_pam, turn_angle
+
+
+@pytest.fixture(scope="module")
+def skel():
+    return robot_skeleton()
+
+
+def _poses(skel, n: int, seed: int = 3) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    q = np.tile(skel.default_q, (n, 1))
+    for c, lo, hi in (("knee_angle_r", -1.5, 0.0), ("ankle_angle_r", -0.5, 0.35), ("hip_flexion_r", -0.3, 1.2),
+                      ("subtalar_angle_r", -0.3, 0.3)):
+        q[:, skel.coordinates.index(c)] = rng.uniform(lo, hi, n)
+    return q
+
+
+def test_a_rack_changes_no_moment_arm_and_no_pam_length(skel):
+    """Tibialis anterior of the thesis design hung on a rack on the tibia: at 40 random poses its route is
+    longer by the two constant pieces, its PAM length, strain and torques about every coordinate are equal to
+    1e-12; the body lies on the anchor–guide piece from the anchor."""
+    des = load_design("thesis")
+    pam = des.pam(16)
+    g = np.asarray(pam.points[0].location)
+    span = pam.resting_length_m + 2 * des.fitting_length_m + 0.02
+    mount = RackMount("origin", "tibia_r", tuple(g + [0.04, -0.01 - span, 0.0]), tuple(g + [0.04, -0.01, 0.0]))
+    racked = rack_pam(pam, mount)
+    assert has_rack(racked) and racked.pam_on == "rack.anchor->rack.guide" and racked.pam_at == "origin"
+    extra = span + math.hypot(0.04, 0.01)
+    assert racked.tendon_length_m == pytest.approx(pam.tendon_length_m + extra, abs=1e-15)
+    q = _poses(skel, 40)
+    a = PamRobot(Design("a", (pam,)), skel, sides=("r",)).evaluate(q)
+    b = PamRobot(Design("b", (racked,)), skel, sides=("r",)).evaluate(q)
+    np.testing.assert_allclose(b.lengths - a.lengths, extra, atol=1e-12)
+    np.testing.assert_allclose(b.pam_lengths, a.pam_lengths, atol=1e-12)
+    np.testing.assert_allclose(b.torques, a.torques, atol=1e-9)
+    place, pts, _ = placements(Design("b", (racked,)), skel, q)[0]
+    assert place.segment == 0 and place.side == "origin" and place.on_one_segment
+    with pytest.raises(ValueError, match="already hangs on a rack"):
+        rack_pam(racked, mount)
+    with pytest.raises(ValueError, match="not a fixed point of 'femur_r'"):
+        rack_pam(pam, dataclasses.replace(mount, host="femur_r"))
+
+
+def test_capstan_by_hand():
+    """A right-angle turn: π/2; e^(−0.1·π/2) = 0.8546 at μ = 0.1; straight: 1."""
+    assert turn_angle([0, 0, 0], [1, 0, 0], [1, 1, 0]) == pytest.approx(math.pi / 2)
+    assert capstan_efficiency(math.pi / 2, 0.1) == pytest.approx(0.854636, abs=1e-6)
+    assert capstan_efficiency(0.0, 0.3) == 1.0
+    with pytest.raises(ValueError):
+        capstan_efficiency(1.0, -0.1)
+
+
+def _toy_bone():
+    """A 20 mm radius cylinder of bone along the tibia's y axis, 0.35 m long, centred 0.2 m below the knee."""
+    cyl = trimesh.creation.cylinder(radius=0.02, height=0.35, sections=48)
+    cyl.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 2, [1, 0, 0]))
+    cyl.apply_translation([0.0, -0.2, 0.0])
+    return cyl
+
+
+def test_two_toy_pams_forced_together_end_apart(skel):
+    """Two 20 mm PAMs with the same route (tibia → calcaneus, both starting 25 mm off a toy tibia): on their
+    routes their bodies coincide. The layout hangs both on racks: at every pose their bodies are ≥ 5 mm
+    apart and ≥ 5 mm from the toy bone (measured with the audit's own functions), their brackets within
+    50 mm of it, and their torques unchanged."""
+    cyl = _toy_bone()
+    bones = BoneSet.from_meshes(skel, {"tibia_r": [(cyl.vertices, cyl.faces)]})
+    route = (PathPoint("p1", "tibia_r", (0.025, -0.12, 0.0)), PathPoint("p2", "calcn_r", (0.1, 0.03, 0.0)))
+    base = load_design("thesis").pam(16)
+    pams = tuple(dataclasses.replace(base, id=i, name=f"toy {i}", points=route, resting_length_m=0.15,
+                                     tendon_length_m=0.2, rollers=(), pam_on=None, pam_at=None) for i in (1, 2))
+    des = Design("toy", pams, fitting_length_m=0.0125)
+    q = _poses(skel, 30)
+    before = placements(des, skel, q)
+    caps = [pam_capsules(pts, pl.segment, L + 0.025, pl.side) for pl, pts, L in before]
+    r = body_radius(20)
+    assert np.min(body_distances(caps[0], caps[1], r, r)) < 0           # forced into each other
+    new, rep = layout(des, skel, bones, q, q[:0], angles=12, time_limit=30)
+    assert sorted(rep.placed) == [1, 2] and rep.unplaced == []
+    after = placements(new, skel, q)
+    st = skel.kinematics.forward(q, warn_range=False)
+    caps = [pam_capsules(pts, pl.segment, L + 0.025, pl.side) for pl, pts, L in after]
+    assert all(pl.on_one_segment for pl, _, _ in after)
+    assert np.min(body_distances(caps[0], caps[1], r, r)) >= BODY_GAP_M - 1e-9
+    for c in caps:
+        clear, _ = bone_clearance(bones, st, c, r, step=0.002, reach=0.05)
+        assert np.min(clear) >= BODY_GAP_M - 1e-9
+    for p in new.pams:
+        for pt in p.points[:2]:
+            d = bones.body_signed_distance("tibia_r", np.array([pt.location]))[0]
+            assert 0 < d <= 0.05
+    a = PamRobot(des, skel, sides=("r",)).evaluate(q)
+    b = PamRobot(new, skel, sides=("r",)).evaluate(q)
+    np.testing.assert_allclose(b.torques, a.torques, atol=1e-9)
+
+
+def test_a_body_that_cannot_clear_the_bone_gets_no_candidate(skel):
+    """Brackets at most 10 mm from the toy bone cannot hold a 15 mm-radius body 5 mm clear of it: no
+    candidate; at 50 mm there are some, every one clear of the bone by the gap."""
+    cyl = _toy_bone()
+    bones = BoneSet.from_meshes(skel, {"tibia_r": [(cyl.vertices, cyl.faces)]})
+    route = (PathPoint("p1", "tibia_r", (0.025, -0.12, 0.0)), PathPoint("p2", "calcn_r", (0.1, 0.03, 0.0)))
+    pam = dataclasses.replace(load_design("thesis").pam(16), points=route, resting_length_m=0.15, rollers=())
+    assert candidates(0, pam, "origin", bones, 0.0125, bracket_max=0.010) == []
+    got = candidates(0, pam, "origin", bones, 0.0125, bracket_max=0.05)
+    assert got
+    for c in got:
+        t = np.linspace(0, 1, 50)[:, None]
+        d = bones.body_signed_distance("tibia_r", c.a + t * (c.b - c.a))
+        assert np.min(d) >= c.radius + BODY_GAP_M
+
+
+def test_rack_config_section():
+    from pamkin.errors import DataFileError
+    from pamkin.optimize.config import RunConfig
+
+    cfg = RunConfig()
+    assert not cfg.rack.enabled and cfg.rack.gap_m == 0.005 and cfg.rack.bracket_max_m == 0.05
+    assert RunConfig().replace({"rack.enabled": True, "rack.angles": 8}).rack.angles == 8
+    with pytest.raises(DataFileError, match="rack.angles"):
+        RunConfig().replace({"rack.angles": 2})
+
+
+def test_the_pipeline_stage_racks_the_toy_pams(skel):
+    """The declared stage (last before the check, switched on by ``[rack] enabled``) on the two toy PAMs as a
+    run's results: both come back on racks on the tibia, and the report says so."""
+    import io
+    from types import SimpleNamespace
+
+    from pamkin.human.rom import load_rom
+    from pamkin.optimize.config import RunConfig
+    from pamkin.optimize.pipeline import STAGES
+    from pamkin.optimize.results import ActuatorResult
+    from pamkin.optimize.stages import rack as stage
+
+    names = [s.name for s in STAGES]
+    assert names[-1] == "rack"
+    on = RunConfig().replace({"rack.enabled": True, "rack.poses": 10, "rack.gait": False, "rack.angles": 8})
+    assert STAGES[-1].enabled(on) and not STAGES[-1].enabled(RunConfig())
+    cyl = _toy_bone()
+    bones = BoneSet.from_meshes(skel, {"tibia_r": [(cyl.vertices, cyl.faces)]})
+    route = (PathPoint("p1", "tibia_r", (0.025, -0.12, 0.0)), PathPoint("p2", "calcn_r", (0.1, 0.03, 0.0)))
+    base = load_design("thesis").pam(16)
+    pams = tuple(dataclasses.replace(base, id=i, name=f"toy {i}", points=route, resting_length_m=0.15,
+                                     tendon_length_m=0.2, rollers=(), pam_on=None, pam_at=None) for i in (1, 2))
+    seed = Design("toy", pams, fitting_length_m=0.0125, rom="robot_thesis")
+    results = [ActuatorResult(p.id, p.name, p, "Solve_Succeeded", True) for p in seed.pams]
+    ctx = SimpleNamespace(cfg=on, seed_design=seed, human=skel, rom=load_rom(seed.rom, "r"), bones=bones,
+                          stream=io.StringIO(), rack=[])
+    out = stage.run(ctx, results)
+    assert all(has_rack(r.pam) for r in out)
+    assert ctx.rack[0].startswith("rack: 2 of 2 PAMs hung on racks") and "left on their routes: none" in ctx.rack[0]
