@@ -1,5 +1,5 @@
-"""The pressure controller of the simulations: a feedforward plan plus a joint-space PD term distributed over
-the PAMs.
+"""The pressure controller of the simulations: a feedforward plus a joint-space PD term distributed over the PAMs,
+and for standing a balance term on the centre of mass.
 
 Every control period the commanded pressures are ``u = clip(p_ff(t) + Δp, 0, p_max)``:
 
@@ -11,21 +11,47 @@ Every control period the commanded pressures are ``u = clip(p_ff(t) + Δp, 0, p_
   DAQP through qpsolvers): the pressure change whose extra torque is τ_fb, with antagonists relaxed only down
   to zero pressure. R are the PAMs' moment arms about the controlled coordinates and B = diag(∂T/∂p) their force
   gains (the slopes of their affine force laws, :meth:`pamkin.sim.pams.PamDrive.affine`), both at the current
-  state (MuJoCo's ``ten_J``; :meth:`pamkin.sim.pams.PamDrive.moment_arms`); λ = :data:`DAMPING_LS` × the mean of diag(M·Mᵀ) in units of p_max.
+  state (MuJoCo's ``ten_J``; :meth:`pamkin.sim.pams.PamDrive.moment_arms`); λ = :data:`DAMPING_LS` × the mean of
+  diag(M·Mᵀ) in units of p_max.
+
+Standing adds two things (:func:`cocontracted_pressures`, :class:`Balance`):
+
+* a co-contracted feedforward: the pressures that hold the pose statically (Rᵀ·(a + B·p) = τ_static) closest to a
+  common level (:data:`COCONTRACTION`): antagonists pressurised against each other. A PAM's force falls as it
+  shortens, so at a constant pressure it is a spring; the co-contracted joints are stiff without waiting for the
+  pressures, which lag their commands by τ;
+* a centre-of-mass term on the ankles (ankle strategy): τ_ankles = −K_com·(x_com − x_com,0) − D_com·ẋ_com, split
+  evenly between the two ankle_angle coordinates (x forward; a forward centre of mass asks for plantarflexion).
+
+Why the PD gains must stay low against the lag: through the first-order lag 1/(1 + τs) a PD term
+Kp·e + Kd·ė acts at a frequency ω as a damping (Kd − Kp·τ)/(1 + ω²τ²) [N·m·s/rad]: with Kp·τ ≥ Kd it feeds energy
+into the fast modes (Kp = 800, Kd = 40, τ = 0.05 s is exactly the edge: the 10–17 Hz hip and pelvis oscillation
+the standing robot had). The control period adds half a period of delay and, on the light pelvis between the
+lumbar and both hips, a sampled damping term Kd·T/I above ~2 is unstable by itself; hence the 2 ms default
+control period (:data:`pamkin.sim.simulate.CONTROL_PERIOD`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 from qpsolvers import solve_ls
 
 from pamkin.gait.plan import plan_pressures
 
-#: PD gains of the feedback torque [N·m/rad, N·m·s/rad].
-KP = 800.0
-KD = 40.0
+#: PD gains of the feedback torque of the harness walk [N·m/rad, N·m·s/rad].
+KP = 1600.0
+KD = 80.0
+#: PD gains of the feedback torque when standing (lower: the co-contraction gives the stiffness) [N·m/rad, N·m·s/rad].
+KP_STAND = 400.0
+KD_STAND = 30.0
+#: Common pressure level of the co-contracted standing feedforward [Pa].
+COCONTRACTION = 400e3
+#: Centre-of-mass balance gains of standing, both ankles together [N·m/m, N·m·s/m].
+K_COM = 2000.0
+D_COM = 300.0
 #: Per-coordinate scaling of the gains (by name prefix; others 1).
 GAIN_SCALE = {"lumbar": 2.0, "hip": 1.0, "knee": 0.7, "ankle": 0.6, "subtalar": 0.2, "mtp": 0.1}
 #: Relative regularisation of the damped least squares.
@@ -83,7 +109,66 @@ class PressureController:
         peak = np.maximum(np.abs(tau), 1.0)
         return plan_pressures(R[None], a[None], b[None], tau[None], peak, p_max=self.p_max)[0]
 
-    def command(self, drive, data, p_ff: np.ndarray, q_err: np.ndarray, qd_err: np.ndarray) -> np.ndarray:
-        """Clipped command [Pa]: feedforward plus :meth:`feedback`."""
+    def command(self, drive, data, p_ff: np.ndarray, q_err: np.ndarray, qd_err: np.ndarray,
+                tau_extra: np.ndarray | None = None) -> np.ndarray:
+        """Clipped command [Pa]: feedforward plus :meth:`feedback` of the PD torque plus ``tau_extra`` (n,)
+        [N·m] (e.g. :meth:`Balance.torque`)."""
         p_ff = np.clip(p_ff, 0.0, self.p_max)
-        return np.clip(p_ff + self.feedback(drive, data, q_err, qd_err, p_ff), 0.0, self.p_max)
+        tau = self.kp * q_err + self.kd * qd_err
+        if tau_extra is not None:
+            tau = tau + tau_extra
+        return np.clip(p_ff + self.feedback(drive, data, None, None, p_ff, tau=tau), 0.0, self.p_max)
+
+
+def cocontracted_pressures(drive, data, columns: np.ndarray, tau: np.ndarray, level: float = COCONTRACTION,
+                           iterations: int = 3) -> np.ndarray:
+    """(n_pams,) pressures [Pa] in [0, p_max] producing the torques ``tau`` [N·m] about the coordinates ``columns``
+    (of ``drive.coordinates``) at the current state, as close as possible to the common ``level`` [Pa].
+
+    Minimises |Rᵀ·B·p − (τ − Rᵀ·a)|² + μ·|p − level|² (μ = 1e-4 × the mean of diag(M·Mᵀ), in units of p_max;
+    bounded least squares, DAQP), then corrects the target by the exact Festo torques' residual (``iterations``
+    times: a PAM slack below some pressure is not affine there)."""
+    pm = drive.p_max
+    a, b = drive.affine(data)
+    R = drive.moment_arms(data)[:, columns]
+    M = (R * b[:, None]).T * pm
+    mu = np.sqrt(1e-4 * np.trace(M @ M.T) / M.shape[1])
+    n = M.shape[1]
+    A = np.vstack([M, mu * np.eye(n)])
+    target = tau - R.T @ a
+    p = np.full(n, float(level))
+    for _ in range(iterations):
+        x = solve_ls(A, np.concatenate([target, np.full(n, mu * level / pm)]), lb=np.zeros(n), ub=np.ones(n),
+                     solver="daqp")
+        if x is None:
+            break
+        p = np.clip(x * pm, 0.0, pm)
+        got = drive.generalized_forces(data, drive.tension(data.ten_length[drive.tendons], p))[columns]
+        target = target + (tau - got)
+    return p
+
+
+@dataclass
+class Balance:
+    """Ankle strategy on the centre of mass (module docstring).
+
+    Attributes:
+        ankles: Indices of ankle_angle_r and ankle_angle_l among the controller's coordinates.
+        x_ref: Reference forward position of the centre of mass [m] (world x).
+        k_com, d_com: Gains, both ankles together [N·m/m, N·m·s/m].
+    """
+
+    ankles: list[int]
+    x_ref: float
+    k_com: float = K_COM
+    d_com: float = D_COM
+
+    def torque(self, model, data, n: int) -> np.ndarray:
+        """(n,) extra torques [N·m] on the controller's n coordinates: −K·(x − x_ref) − D·ẋ split over the
+        ankles (MuJoCo's ``subtree_com`` of the last position stage, ``subtree_linvel`` computed here)."""
+        mujoco.mj_comVel(model, data)
+        mujoco.mj_subtreeVel(model, data)
+        tau = np.zeros(n)
+        tau[self.ankles] = 0.5 * (-self.k_com * (data.subtree_com[0][0] - self.x_ref)
+                                  - self.d_com * data.subtree_linvel[0][0])
+        return tau

@@ -52,12 +52,55 @@ def test_harness_force_balances_momentum(robot_conv):
 
 
 def test_feedback_tracks_better_than_the_plan_alone(robot_conv):
+    """Rigid harness on the trial's pelvis over 0.3 s (its first tenth of a second is the start transient): the
+    feedback keeps every tracked joint within 7.5° RMS (6.4° measured; the full-window figures, within 5° for the
+    thesis design, are in docs/mujoco.md), the plan alone drifts to ~28°."""
     robot, conv = robot_conv
-    window = {"time_range": (0.5, 0.8)}
+    window = {"time_range": (0.5, 0.8), "support": None}
     open_loop = harness_walk(robot, conv, kp=0.0, kd=0.0, **window).summary
     closed = harness_walk(robot, conv, **window).summary
-    assert closed["tracked_rms_max_deg"] < open_loop["tracked_rms_max_deg"]
+    assert closed["tracked_rms_max_deg"] < 7.5 < open_loop["tracked_rms_max_deg"]
     assert closed["duration_s"] == pytest.approx(0.3, abs=0.02)
+
+
+def test_regulated_harness_moves_its_load_towards_the_target(robot_conv):
+    """The load-regulated harness moves its height by the integrated load error: asked for half the weight on a
+    window where the rigid harness carries ~5 %, it rises and carries more (0.26 measured), asked for none it
+    carries less (the load is the weld's own force in every case)."""
+    robot, conv = robot_conv
+    window = {"time_range": (0.5, 0.8), "admittance": 3000.0}
+    rigid = harness_walk(robot, conv, support=None, **window).summary["harness_mean_vertical_load_fraction"]
+    half = harness_walk(robot, conv, support=0.5, **window)
+    none = harness_walk(robot, conv, support=0.0, **window).summary["harness_mean_vertical_load_fraction"]
+    assert half.harness_offset.max() > 0.01
+    assert none < rigid - 0.05 and half.summary["harness_mean_vertical_load_fraction"] > rigid + 0.15
+
+
+def test_harness_offset_integrates_the_load_error():
+    """d(offset)/dt = −(F − s·W)/c, bounded (hand calculation)."""
+    from pamkin.sim.harness import OFFSET_MIN, Harness
+
+    h = Harness(0.001, np.tile(np.eye(4), (3, 1, 1)), weight=700.0, support=0.1, admittance=1000.0)
+    h.update(170.0, 0.01)                                  # 100 N above the 70 N target for 10 ms: −1 mm
+    assert h.offset == pytest.approx(-0.001)
+    h.update(1e6, 1.0)
+    assert h.offset == OFFSET_MIN
+    rigid = Harness(0.001, np.tile(np.eye(4), (3, 1, 1)), weight=700.0, support=None)
+    rigid.update(500.0, 1.0)
+    assert rigid.offset == 0.0 and rigid.pose(0.0)[0].tolist() == [0.0, 0.0, 0.0]
+
+
+def test_standing_stays_up_with_cocontraction_and_balance(robot_conv):
+    """1.5 s of standing (the default controller: co-contracted static feedforward, low-gain PD, centre-of-mass
+    balance on the ankles): the pelvis drifts < 3 cm and drops < 5 cm; without the balance term and co-contraction
+    (the least-effort static pressures, PD only) it drifts more than twice as far."""
+    from pamkin.sim.simulate import stand
+
+    robot, conv = robot_conv
+    s = stand(robot, conv, duration=1.5).summary
+    assert s["stayed_up"] and s["pelvis_horizontal_drift_max_m"] < 0.03 and s["pelvis_drop_max_m"] < 0.05
+    bare = stand(robot, conv, duration=1.5, cocontraction=0.0, k_com=0.0, d_com=0.0).summary
+    assert bare["pelvis_horizontal_drift_max_m"] > 2 * s["pelvis_horizontal_drift_max_m"]
 
 
 def test_simulate_cli_writes_the_run_folder(tmp_path, capsys):
@@ -67,15 +110,17 @@ def test_simulate_cli_writes_the_run_folder(tmp_path, capsys):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["kind"] == "stand" and summary["duration_s"] == 0.2
     rows = (out / "timeseries.csv").read_text().splitlines()
-    assert rows[0].startswith("t_s,") and len(rows) == 1 + 41           # 0.2 s at the 5 ms control period
+    assert rows[0].startswith("t_s,") and len(rows) == 1 + 101          # 0.2 s at the 2 ms control period
     data = np.load(out / "timeseries.npz")
-    assert data["pressures"].shape == (41, 54) and (data["pressures"] <= 620e3).all()
+    assert data["pressures"].shape == (101, 54) and (data["pressures"] <= 620e3).all()
     assert (out / "animation.html").read_text().startswith("<!DOCTYPE html>")
     for png in ("tracking.png", "pressures.png"):
         assert (out / png).stat().st_size > 10_000
     assert main(["simulate", "--mode", "stand", "--out", str(out)]) == 2          # exists: refused
     assert main(["simulate", "--tau", "0", "--out", str(tmp_path / "x")]) == 2
     assert "--tau" in capsys.readouterr().err and not (tmp_path / "x").exists()
+    assert main(["simulate", "--support", "1.5", "--out", str(tmp_path / "x")]) == 2
+    assert "--support" in capsys.readouterr().err and not (tmp_path / "x").exists()
 
 
 def test_feedback_pressures_produce_the_asked_torque(robot_conv):
