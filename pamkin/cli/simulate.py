@@ -53,9 +53,9 @@ def add_parsers(sub) -> None:
     s.add_argument("--support", type=float, default=0.1,
                    help="walk: share of the body weight the harness is regulated to carry (its height follows the "
                         "trial's pelvis plus an offset integrated from the load error; default 0.1)")
-    s.add_argument("--admittance", type=float, default=10000.0,
+    s.add_argument("--admittance", type=float, default=300.0,
                    help="walk: admittance damping of the harness height [N·s/m]: offset rate = -(load - support x "
-                        "weight) / admittance (default 10000)")
+                        "weight) / admittance (default 300)")
     s.add_argument("--rigid-harness", action="store_true",
                    help="walk: the harness rigid on the trial's pelvis (no load regulation; --support ignored)")
     s.set_defaults(func=cmd_simulate)
