@@ -104,9 +104,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
                            lead=args.lead, ground=args.ground, admittance=args.admittance,
                            support=None if args.rigid_harness else args.support)
     else:
-        res = stand(robot, conv, duration=args.duration, pressure=None if args.pressure is None else args.pressure * 1e3,
-                    tau=tau, kp=args.kp, kd=args.kd, cocontraction=args.cocontraction * 1e3, k_com=args.k_com,
-                    d_com=args.d_com)
+        pressure = None if args.pressure is None else args.pressure * 1e3
+        res = stand(robot, conv, duration=args.duration, pressure=pressure, tau=tau, kp=args.kp, kd=args.kd,
+                    cocontraction=args.cocontraction * 1e3, k_com=args.k_com, d_com=args.d_com)
     write_run(conv, res, Path(args.out), args.force, res.summary.get("weight_N"))
     s = res.summary
     rms = ", ".join(f"{c} {s['angle_rms_deg'][c]:.1f}°" for c in s["tracked"])

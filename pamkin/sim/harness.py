@@ -23,7 +23,8 @@ import numpy as np
 
 #: Target share of the body weight the regulated harness carries (the goal is ≤ 0.2 on average).
 SUPPORT = 0.1
-#: Admittance damping of the harness height [N·s/m] (a soft, fast regulation: ~10 ms against a leg of 30 kN/m; see docs/mujoco.md for the sensitivity).
+#: Admittance damping of the harness height [N·s/m] (a soft, fast regulation: ~10 ms against a leg of 30 kN/m;
+#: docs/mujoco.md gives the results' sensitivity to it).
 ADMITTANCE = 300.0
 #: Bounds of the harness's vertical offset from the trial's pelvis height [m].
 OFFSET_MIN, OFFSET_MAX = -0.15, 0.05

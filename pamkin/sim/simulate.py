@@ -22,8 +22,8 @@ from pamkin.errors import RangeWarning
 from pamkin.gait.plan import DEFAULT_GRF, evaluate_plan, load_trial
 from pamkin.opensim.storage import read_storage
 from pamkin.robot.biped import PamRobot
-from pamkin.sim.control import (COCONTRACTION, D_COM, K_COM, KD_STAND, KP_STAND, Balance, PressureController,
-                                cocontracted_pressures)
+from pamkin.sim.control import (COCONTRACTION, D_COM, K_COM, KD_STAND, KP_STAND, STAND_GAIN_SCALE, Balance,
+                                PressureController, cocontracted_pressures)
 from pamkin.sim.harness import ADMITTANCE, SUPPORT, Harness
 from pamkin.sim.inverse import foot_assignment
 from pamkin.sim.convert import Conversion
@@ -277,8 +277,8 @@ def stand(robot: PamRobot, conv: Conversion, duration: float = 10.0, pressure: f
     :func:`pamkin.sim.control.cocontracted_pressures`; 0: the least-effort pressures of
     :meth:`PressureController.pressures_for`), or a constant ``pressure`` [Pa] when given; plus the PD feedback
     towards the pose (every non-pelvis coordinate; default gains :data:`~pamkin.sim.control.KP_STAND`,
-    :data:`~pamkin.sim.control.KD_STAND`) and the centre-of-mass balance on the ankles (gains ``k_com``
-    [N·m/m], ``d_com`` [N·m·s/m]; 0, 0: none)."""
+    :data:`~pamkin.sim.control.KD_STAND`, scaled by :data:`~pamkin.sim.control.STAND_GAIN_SCALE`) and the
+    centre-of-mass balance on the ankles (gains ``k_com`` [N·m/m], ``d_com`` [N·m·s/m]; 0, 0: none)."""
     model = robot.model
     q0 = standing_pose(robot, conv)
     scene = build_scene(conv, robot, q0[None], harness=False, tau=tau)
@@ -286,7 +286,7 @@ def stand(robot: PamRobot, conv: Conversion, duration: float = 10.0, pressure: f
     cidx = [model.coordinates.index(c) for c in drive.coordinates]
     controlled = [c for c in drive.coordinates if not c.startswith("pelvis_")]
     ctrl = PressureController.for_drive(drive, controlled, kp=KP_STAND if kp is None else kp,
-                                        kd=KD_STAND if kd is None else kd)
+                                        kd=KD_STAND if kd is None else kd, gain_scale=STAND_GAIN_SCALE)
     ref = (q0[cidx], np.zeros(len(cidx)))
     scene.set_pose(q0)
     tau_static = static_torques(scene, q0)[ctrl.columns]
