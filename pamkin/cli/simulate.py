@@ -13,9 +13,10 @@ def add_parsers(sub) -> None:
                     "forces from the Festo force law at the tendons' lengths and first-order pressure dynamics, "
                     "and simulate it; the pressure commands are updated every 2 ms. walk: the pelvis is welded to a "
                     "harness that follows the walking trial's pelvis, its height regulated so that it carries "
-                    "--support of the body weight (or rigid on the trial's pelvis with --rigid-harness); pressures "
-                    "are pamkin gait's plan plus a PD feedback distributed over the PAMs (damped least squares "
-                    "through the moment arms). stand: the free robot from a standing pose with its centre of mass "
+                    "--support of the body weight (or rigid on the trial's pelvis with --rigid-harness), the feet "
+                    "on a treadmill belt at the trial's speed; pressures are pamkin gait's plan plus a PD feedback "
+                    "distributed over the PAMs (damped least squares through the moment arms), a swinging foot's "
+                    "gains lowered. stand: the free robot from a standing pose with its centre of mass "
                     "over the feet; pressures holding the pose statically with the antagonists co-contracted near "
                     "--cocontraction, plus a low-gain PD feedback and a centre-of-mass balance term on the ankles. "
                     "Writes a run folder: timeseries.csv/.npz, summary.json, tracking.png, pressures.png, "
@@ -58,6 +59,12 @@ def add_parsers(sub) -> None:
                         "weight) / admittance (default 300)")
     s.add_argument("--rigid-harness", action="store_true",
                    help="walk: the harness rigid on the trial's pelvis (no load regulation; --support ignored)")
+    s.add_argument("--no-treadmill", action="store_true",
+                   help="walk: a fixed floor (default: a treadmill belt at the trial's speed, as the trial was recorded "
+                        "on a treadmill: its pelvis does not advance)")
+    s.add_argument("--swing-scale", type=float, default=0.5,
+                   help="walk: multiplier of a swinging foot's ankle, subtalar and mtp gains (default 0.5; 1: the "
+                        "same gains in swing and stance)")
     s.set_defaults(func=cmd_simulate)
 
 
@@ -79,6 +86,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             raise ParameterError(f"--{name} must be in [0, 1e5], got {v}")
     if not -0.1 <= args.floor_offset <= 0.5:
         raise ParameterError(f"--floor-offset must be in [-0.1, 0.5] m, got {args.floor_offset}")
+    if not 0 < args.swing_scale <= 2:
+        raise ParameterError(f"--swing-scale must be in (0, 2], got {args.swing_scale}")
     if not 0 <= args.support <= 1:
         raise ParameterError(f"--support must be in [0, 1] of the body weight, got {args.support}")
     if not 100 <= args.admittance <= 1e7:
@@ -102,7 +111,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.mode == "walk":
         res = harness_walk(robot, conv, tau=tau, kp=args.kp, kd=args.kd, floor_offset=args.floor_offset,
                            lead=args.lead, ground=args.ground, admittance=args.admittance,
-                           support=None if args.rigid_harness else args.support)
+                           support=None if args.rigid_harness else args.support, treadmill=not args.no_treadmill,
+                           swing_scale=args.swing_scale)
     else:
         pressure = None if args.pressure is None else args.pressure * 1e3
         res = stand(robot, conv, duration=args.duration, pressure=pressure, tau=tau, kp=args.kp, kd=args.kd,

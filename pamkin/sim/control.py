@@ -49,6 +49,10 @@ KP_STAND = 400.0
 KD_STAND = 30.0
 #: Common pressure level of the co-contracted standing feedforward [Pa].
 COCONTRACTION = 400e3
+#: Multiplier of a swinging foot's ankle, subtalar and mtp gains in the harness walk (:class:`SwingGains`).
+SWING_SCALE = 0.5
+#: A foot is on the floor when its lowest contact sphere is closer to it than this [m].
+TOUCH = 0.003
 #: Centre-of-mass balance gains of standing, both ankles together [N·m/m, N·m·s/m].
 K_COM = 2000.0
 D_COM = 300.0
@@ -115,11 +119,14 @@ class PressureController:
         return plan_pressures(R[None], a[None], b[None], tau[None], peak, p_max=self.p_max)[0]
 
     def command(self, drive, data, p_ff: np.ndarray, q_err: np.ndarray, qd_err: np.ndarray,
-                tau_extra: np.ndarray | None = None) -> np.ndarray:
-        """Clipped command [Pa]: feedforward plus :meth:`feedback` of the PD torque plus ``tau_extra`` (n,)
-        [N·m] (e.g. :meth:`Balance.torque`)."""
+                tau_extra: np.ndarray | None = None, gain: np.ndarray | None = None) -> np.ndarray:
+        """Clipped command [Pa]: feedforward plus :meth:`feedback` of the PD torque (its gains multiplied per
+        coordinate by ``gain`` when given, e.g. :meth:`SwingGains.gain`) plus ``tau_extra`` (n,) [N·m] (e.g.
+        :meth:`Balance.torque`)."""
         p_ff = np.clip(p_ff, 0.0, self.p_max)
         tau = self.kp * q_err + self.kd * qd_err
+        if gain is not None:
+            tau = gain * tau
         if tau_extra is not None:
             tau = tau + tau_extra
         return np.clip(p_ff + self.feedback(drive, data, None, None, p_ff, tau=tau), 0.0, self.p_max)
@@ -177,3 +184,37 @@ class Balance:
         tau[self.ankles] = 0.5 * (-self.k_com * (data.subtree_com[0][0] - self.x_ref)
                                   - self.d_com * data.subtree_linvel[0][0])
         return tau
+
+
+@dataclass
+class SwingGains:
+    """Lower foot gains while a foot swings (harness walk).
+
+    A swinging foot is light (≈ 0.015 kg·m² about the ankle): the full ankle gains, Kd·T/I ≈ 6 at the 2 ms
+    control period and Kd = Kp·τ, made it ripple at 15–20 Hz; on a treadmill belt the rippling toes caught the
+    belt in late swing and it dragged the leg back. While a foot is off the floor (its lowest contact sphere
+    more than :data:`TOUCH` above it) its ankle, subtalar and mtp gains are multiplied by ``scale``.
+
+    Attributes:
+        n: Number of the controller's coordinates.
+        columns: {side: indices of that foot's coordinates among the controller's}.
+        scale: The multiplier (:data:`SWING_SCALE`).
+    """
+
+    n: int
+    columns: dict[str, list[int]]
+    scale: float = SWING_SCALE
+
+    @classmethod
+    def for_controller(cls, ctrl: PressureController, scale: float = SWING_SCALE) -> SwingGains:
+        cols = {side: [ctrl.coordinates.index(f"{j}_{side}") for j in ("ankle_angle", "subtalar_angle", "mtp_angle")
+                       if f"{j}_{side}" in ctrl.coordinates] for side in ("r", "l")}
+        return cls(len(ctrl.coordinates), cols, scale)
+
+    def gain(self, scene) -> np.ndarray:
+        """(n,) gain multipliers for the current state (``scene``: :class:`pamkin.sim.scene.Scene`)."""
+        g = np.ones(self.n)
+        for side, cols in self.columns.items():
+            if scene.foot_gap(side) > TOUCH:
+                g[cols] = self.scale
+        return g

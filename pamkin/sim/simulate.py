@@ -22,8 +22,8 @@ from pamkin.errors import RangeWarning
 from pamkin.gait.plan import DEFAULT_GRF, evaluate_plan, load_trial
 from pamkin.opensim.storage import read_storage
 from pamkin.robot.biped import PamRobot
-from pamkin.sim.control import (COCONTRACTION, D_COM, K_COM, KD_STAND, KP_STAND, STAND_GAIN_SCALE, Balance,
-                                PressureController, cocontracted_pressures)
+from pamkin.sim.control import (COCONTRACTION, D_COM, K_COM, KD_STAND, KP_STAND, STAND_GAIN_SCALE, SWING_SCALE,
+                                Balance, PressureController, SwingGains, cocontracted_pressures)
 from pamkin.sim.harness import ADMITTANCE, SUPPORT, Harness
 from pamkin.sim.inverse import foot_assignment
 from pamkin.sim.convert import Conversion
@@ -77,10 +77,11 @@ class SimResult:
 
 
 def _run(scene: Scene, ctrl: PressureController, duration: float, reference, feedforward,
-         harness: Harness | None = None, kind: str = "", extra=None) -> SimResult:
+         harness: Harness | None = None, kind: str = "", extra=None, gains: SwingGains | None = None) -> SimResult:
     """Step ``scene`` for ``duration`` s: every control period the command from the reference (t -> (q, q̇) in
-    drive order), the feedforward (t -> pressures) and ``extra`` (() -> extra torques on the controlled
-    coordinates [N·m], optional); ``harness`` moves the mocap body and regulates its height on the measured load."""
+    drive order), the feedforward (t -> pressures), ``extra`` (() -> extra torques on the controlled
+    coordinates [N·m], optional) and the gain schedule ``gains``; ``harness`` moves the mocap body and regulates
+    its height on the measured load."""
     m, d, drive = scene.model, scene.data, scene.drive
     dt = m.opt.timestep
     per = max(1, int(round(CONTROL_PERIOD / dt)))
@@ -102,7 +103,8 @@ def _run(scene: Scene, ctrl: PressureController, duration: float, reference, fee
             cols = ctrl.columns
             mujoco.mj_fwdPosition(m, d)
             err, derr = qr[cols] - scene.positions()[cols], qdr[cols] - scene.speeds()[cols]
-            drive.command[:] = ctrl.command(drive, d, feedforward(t), err, derr, None if extra is None else extra())
+            drive.command[:] = ctrl.command(drive, d, feedforward(t), err, derr, None if extra is None else extra(),
+                                            None if gains is None else gains.gain(scene))
             for key, v in (("t", t), ("q", scene.positions()), ("q_ref", qr), ("p", drive.pressure.copy()),
                            ("u", drive.command.copy()), ("T", T.copy()), ("H", load), ("pelvis", d.xpos[bid[0]].copy()),
                            ("off", 0.0 if harness is None else harness.offset)):
@@ -156,15 +158,34 @@ def grounded(scene: Scene, times: np.ndarray, q: np.ndarray, grf) -> np.ndarray:
     return out
 
 
+def treadmill_speed(robot: PamRobot, conv: Conversion, times: np.ndarray, q: np.ndarray, grf) -> float:
+    """The trial's treadmill speed [m/s]: the median backward speed of the loaded feet (the ground reactions'
+    vertical force above 20 N) in the trial's kinematics (the pelvis stays within ±2 cm of 0.59 m forward over the
+    4 s of the trial: it was recorded on a treadmill)."""
+    feet = foot_assignment(conv, times, q, grf)
+    st = read_storage(grf)
+    placements = robot.model.body_transforms(q)
+    speeds = []
+    for prefix, body in feet.items():
+        x = placements[body][:, 0, 3]
+        loaded = np.interp(times, st.time, st.data[:, st.columns.index(f"{prefix}vy")]) > 20.0
+        speeds.append(-np.gradient(x, times)[loaded])
+    return float(np.median(np.concatenate(speeds)))
+
+
 def harness_walk(robot: PamRobot, conv: Conversion, tau: float = TAU, kp: float | None = None,
                  kd: float | None = None, floor_offset: float = 0.0, lead: float = 1.0, ground: bool = False,
-                 support: float | None = SUPPORT, admittance: float = ADMITTANCE, **trial) -> SimResult:
+                 support: float | None = SUPPORT, admittance: float = ADMITTANCE, treadmill: bool = True,
+                 swing_scale: float = SWING_SCALE, **trial) -> SimResult:
     """Walk on a harness along the trial (``trial``: keyword arguments of :func:`pamkin.gait.plan.load_trial`).
 
     The feedforward is the plan ``lead``·τ ahead (the pressures lag their commands by τ; 0: the plan as is). With
     ``ground`` the pelvis follows the trial lowered so that the loaded feet touch the floor (:func:`grounded`).
     The harness's height is regulated towards carrying ``support`` × the body weight with the admittance
     ``admittance`` [N·s/m] (:class:`pamkin.sim.harness.Harness`; ``support=None``: rigid on the trial's pelvis).
+    With ``treadmill`` the floor is a belt running backward at :func:`treadmill_speed`, as under the subject
+    (otherwise a fixed floor, on which a loaded stance foot cannot follow the trial's backward sweep). A swinging
+    foot's gains are multiplied by ``swing_scale`` (:class:`pamkin.sim.control.SwingGains`; 1: no schedule).
 
     The floor touches the lowest foot sphere over the trial's frames, lowered by ``floor_offset`` [m] (negative:
     raised). The trial's own floor (its centres of pressure, y = −0.0075 m) is not used: the IK angles belong to
@@ -178,16 +199,18 @@ def harness_walk(robot: PamRobot, conv: Conversion, tau: float = TAU, kp: float 
     P = plan.pressures[:, order]
     times = tr.times - tr.times[0]
     model = robot.model
-    scene = build_scene(conv, robot, tr.q, harness=True, tau=tau, floor_offset=floor_offset)
+    grf = trial.get("grf", DEFAULT_GRF)
+    speed = treadmill_speed(robot, conv, tr.times, tr.q, grf) if treadmill else None
+    scene = build_scene(conv, robot, tr.q, harness=True, tau=tau, floor_offset=floor_offset, belt_speed=speed)
     if ground:
-        tr = replace(tr, q=grounded(scene, tr.times, tr.q, trial.get("grf", DEFAULT_GRF)))
+        tr = replace(tr, q=grounded(scene, tr.times, tr.q, grf))
     drive = scene.drive
     cidx = [model.coordinates.index(c) for c in drive.coordinates]
     qd = np.gradient(tr.q, tr.times, axis=0)
     dt = scene.model.opt.timestep
     fine = np.arange(0.0, times[-1] + dt / 2, dt)
     qf = np.column_stack([np.interp(fine, times, tr.q[:, j]) for j in range(tr.q.shape[1])])
-    weight = float(scene.model.body_subtreemass[0]) * 9.80665
+    weight = scene.mass() * 9.80665
     harness = Harness(dt, model.body_transforms(qf)["pelvis"], weight, support, admittance)
 
     def reference(t):
@@ -203,7 +226,8 @@ def harness_walk(robot: PamRobot, conv: Conversion, tau: float = TAU, kp: float 
     scene.data.mocap_pos[0], scene.data.mocap_quat[0] = harness.pose(0.0)
     scene.set_pose(tr.q[0], qd[0])
     drive.pressure[:] = P[0]
-    res = _run(scene, ctrl, float(times[-1]), reference, feedforward, harness, "harness_walk")
+    gains = SwingGains.for_controller(ctrl, swing_scale) if swing_scale != 1.0 else None
+    res = _run(scene, ctrl, float(times[-1]), reference, feedforward, harness, "harness_walk", gains=gains)
     res.summary = _tracking_summary(res) | {
         "duration_s": float(times[-1]), "trial_start_s": float(tr.times[0]),
         "body_mass_kg": weight / 9.80665, "weight_N": weight,
@@ -215,7 +239,8 @@ def harness_walk(robot: PamRobot, conv: Conversion, tau: float = TAU, kp: float 
         "pressure_time_constant_s": tau, "kp": float(ctrl.kp.max()), "kd": float(ctrl.kd.max()),
         "floor_m": scene.floor, "feedforward_lead_s": lead * tau, "grounded_pelvis": ground,
         "control_period_s": CONTROL_PERIOD, "harness_target_share": support, "harness_admittance_Ns_per_m": admittance,
-        "harness_offset_mean_m": float(res.harness_offset.mean()),
+        "harness_offset_mean_m": float(res.harness_offset.mean()), "treadmill_speed_m_per_s": speed,
+        "swing_gain_scale": swing_scale,
         "harness_offset_range_m": [float(res.harness_offset.min()), float(res.harness_offset.max())]}
     return res
 
@@ -226,7 +251,7 @@ def static_torques(scene: Scene, q: np.ndarray) -> np.ndarray:
     constraints off; the pelvis's six are what the feet's split leaves unbalanced)."""
     m, d = scene.model, scene.data
     scene.set_pose(q)
-    weight = float(m.body_subtreemass[0]) * 9.80665
+    weight = scene.mass() * 9.80665
     ext = np.zeros(m.nv)
     for side in ("r", "l"):
         geoms = [g for g in range(m.ngeom) if m.geom(g).name.startswith("contact")

@@ -53,8 +53,7 @@ def test_harness_force_balances_momentum(robot_conv):
 
 def test_feedback_tracks_better_than_the_plan_alone(robot_conv):
     """Rigid harness on the trial's pelvis over 0.3 s (its first tenth of a second is the start transient): the
-    feedback keeps every tracked joint within 7.5° RMS (6.4° measured; the full-window figures, within 5° for the
-    thesis design, are in docs/mujoco.md), the plan alone drifts to ~28°."""
+    feedback keeps every tracked joint within 7.5° RMS, the plan alone drifts far beyond."""
     robot, conv = robot_conv
     window = {"time_range": (0.5, 0.8), "support": None}
     open_loop = harness_walk(robot, conv, kp=0.0, kd=0.0, **window).summary
@@ -63,17 +62,42 @@ def test_feedback_tracks_better_than_the_plan_alone(robot_conv):
     assert closed["duration_s"] == pytest.approx(0.3, abs=0.02)
 
 
-def test_regulated_harness_moves_its_load_towards_the_target(robot_conv):
-    """The load-regulated harness moves its height by the integrated load error: asked for half the weight on a
-    window where the rigid harness carries ~5 %, it rises and carries more (0.26 measured), asked for none it
-    carries less (the load is the weld's own force in every case)."""
+def test_harness_walk_meets_the_goal(robot_conv):
+    """The whole trial window (1.1 s) with the defaults (regulated harness, treadmill, swing gains): hip, knee and
+    ankle within issue 45's 5° RMS and the harness carrying at most 20 % of the weight on average (measured
+    2026-11-29: 3.9° and 10 %)."""
     robot, conv = robot_conv
-    window = {"time_range": (0.5, 0.8), "admittance": 3000.0}
+    s = harness_walk(robot, conv).summary
+    assert s["tracked_rms_max_deg"] <= 5.0
+    assert 0.0 < s["harness_mean_vertical_load_fraction"] <= 0.2
+    assert 0.9 < s["treadmill_speed_m_per_s"] < 1.2
+
+
+def test_treadmill_belt_moves_at_its_speed(robot_conv):
+    """The belt's slide joint advances at −belt_speed while the robot falls towards it from 1 m above; the robot's
+    mass excludes the 8 t belt (Gait2392: 75.16 kg)."""
+    robot, conv = robot_conv
+    q0 = robot.model.default_q
+    scene = build_scene(conv, robot, None, floor=-1.0, belt_speed=1.25)
+    scene.set_pose(q0)
+    for _ in range(100):
+        scene.step()
+    assert scene.data.qpos[scene.belt_dof] == pytest.approx(-0.125, rel=1e-9)
+    assert scene.mass() == pytest.approx(75.16, abs=0.01)
+
+
+def test_regulated_harness_carries_its_target_share(robot_conv):
+    """The load-regulated harness moves its height by the integrated load error: over a 0.3 s window where the
+    rigid harness carries 83 % of the weight, asked for half or none of it, it carries that share within 5 % of
+    the weight (measured 50 % and 2 %; the load is the weld's own force in every case)."""
+    robot, conv = robot_conv
+    window = {"time_range": (0.5, 0.8)}
     rigid = harness_walk(robot, conv, support=None, **window).summary["harness_mean_vertical_load_fraction"]
-    half = harness_walk(robot, conv, support=0.5, **window)
-    none = harness_walk(robot, conv, support=0.0, **window).summary["harness_mean_vertical_load_fraction"]
-    assert half.harness_offset.max() > 0.01
-    assert none < rigid - 0.05 and half.summary["harness_mean_vertical_load_fraction"] > rigid + 0.15
+    assert rigid > 0.7
+    for share in (0.5, 0.0):
+        res = harness_walk(robot, conv, support=share, **window)
+        assert res.summary["harness_mean_vertical_load_fraction"] == pytest.approx(share, abs=0.05)
+        assert res.harness_offset.min() < -0.005                    # lowered: the legs take the rest
 
 
 def test_harness_offset_integrates_the_load_error():
