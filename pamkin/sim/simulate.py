@@ -1,13 +1,14 @@
 """Simulations of a robot design in MuJoCo: walking on a harness along a recorded trial, and standing.
 
 * :func:`harness_walk`: the pelvis follows the trial's pelvis (the mocap body of the scene's harness weld moves
-  along pamkin's pelvis placements of the trial's IK coordinates), the feet meet the floor, the PAM pressures
-  are ``pamkin gait``'s plan of the trial plus the PD feedback of :mod:`pamkin.sim.control` towards the trial's
-  angles. Reported: angle RMS per coordinate against the trial, the harness's mean vertical load as a fraction
-  of body weight.
+  along pamkin's pelvis placements of the trial's IK coordinates, its height regulated on the harness's load,
+  :mod:`pamkin.sim.harness`), the feet meet a treadmill belt at the trial's speed (:func:`treadmill_speed`), the
+  PAM pressures are ``pamkin gait``'s plan of the trial plus the PD feedback of :mod:`pamkin.sim.control` towards
+  the trial's angles (a swinging foot's gains lowered). Reported: angle RMS per coordinate against the trial, the
+  harness's mean vertical load as a fraction of body weight.
 * :func:`stand`: the free robot (no harness) from a standing pose with the feet on the floor (:func:`standing_pose`),
-  feedforward pressures holding it statically plus the same feedback towards that pose; reported: pelvis drift
-  and whether it stays up.
+  co-contracted feedforward pressures holding it statically, a low-gain PD towards that pose and a balance term
+  on the centre of mass; reported: pelvis drift and whether it stays up.
 """
 
 from __future__ import annotations

@@ -145,6 +145,8 @@ def test_simulate_cli_writes_the_run_folder(tmp_path, capsys):
     assert "--tau" in capsys.readouterr().err and not (tmp_path / "x").exists()
     assert main(["simulate", "--support", "1.5", "--out", str(tmp_path / "x")]) == 2
     assert "--support" in capsys.readouterr().err and not (tmp_path / "x").exists()
+    assert main(["simulate", "--swing-scale", "0", "--out", str(tmp_path / "x")]) == 2
+    assert "--swing-scale" in capsys.readouterr().err and not (tmp_path / "x").exists()
 
 
 def test_feedback_pressures_produce_the_asked_torque(robot_conv):
