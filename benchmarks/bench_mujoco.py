@@ -4,7 +4,7 @@ Usage: ``python benchmarks/bench_mujoco.py [DESIGN] [SECONDS]`` (default: the ro
 time). Builds the scene (both legs, every PAM, foot contacts on a floor, standing pose, 1 ms steps), then
 times the same number of steps three ways in this process: MuJoCo alone (``mj_step``, no PAM forces), with the
 PAM forces (``Scene.step``: Festo force law per step, pressure lag), and the whole ``stand`` simulation (PAM
-forces and the 200 Hz pressure controller, :mod:`pamkin.sim.control`), and prints steps/s, the ratio to MuJoCo's
+forces and the 500 Hz pressure controller, :mod:`pamkin.sim.control`), and prints steps/s, the ratio to MuJoCo's
 own rate and the real-time factor (simulated seconds per wall-clock second). One thread (``OMP/MKL``
 threads are not used by MuJoCo's stepping).
 """

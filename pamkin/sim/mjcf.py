@@ -73,6 +73,9 @@ class MjcfSpec:
     contacts: list[tuple[str, tuple[float, float, float], float]] = field(default_factory=list)
     #: Height of a floor plane (normal +Y) [m]; None: no floor.
     floor: float | None = None
+    #: The floor as a treadmill belt: a heavy box (top at ``floor``) on a slide joint ``belt`` along x, whose
+    #: speed the simulation sets.
+    belt: bool = False
     #: Weld this body to a mocap body ``harness`` (which the simulation moves); None: no harness.
     harness: str | None = None
     #: Limit every coordinate's joint to the coordinate's range (default: only clamped coordinates).
@@ -103,7 +106,13 @@ def mjcf_document(osim: OsimModel, cmap: CoordinateMap, spec: MjcfSpec) -> str:
                     ET.SubElement(asset, "mesh", name=name, file=file, scale=_nums(scale), inertia="shell")
     world = ET.SubElement(root, "worldbody")
     elements = {"world": world}
-    if spec.floor is not None:                     # a plane's normal is its z: turned onto +Y
+    if spec.floor is not None and spec.belt:       # 20 m × 4 m × 0.1 m, 8 t: contacts barely slow it within a step
+        belt = ET.SubElement(world, "body", name="belt", pos=_nums((0, spec.floor - 0.05, 0)))
+        ET.SubElement(belt, "inertial", pos="0 0 0", mass="8000", diaginertia="10673 277333 266673")
+        ET.SubElement(belt, "joint", name="belt", type="slide", axis="1 0 0")
+        ET.SubElement(belt, "geom", name="floor", type="box", size="10 0.05 2", friction="1 0.005 0.0001",
+                      rgba="0.8 0.8 0.8 1")
+    elif spec.floor is not None:                     # a plane's normal is its z: turned onto +Y
         ET.SubElement(world, "geom", name="floor", type="plane", size="5 5 0.1", pos=_nums((0, spec.floor, 0)),
                       quat=_nums((np.sqrt(0.5), -np.sqrt(0.5), 0, 0)), friction="1 0.005 0.0001",
                       rgba="0.8 0.8 0.8 1")

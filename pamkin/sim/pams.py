@@ -86,16 +86,17 @@ class PamDrive:
         self._scale = robot.n_parallel / robot.transmission
 
     def tension(self, lengths: np.ndarray, pressure: np.ndarray) -> np.ndarray:
-        """Route tensions (n,) [N] at route lengths (n,) [m] and pressures (n,) [Pa]."""
+        """Route tensions (..., n) [N] at route lengths (n,) [m] and pressures (..., n) [Pa] (several pressure rows
+        at the same lengths in one force-law call per diameter)."""
         r = self.robot
         pam = np.empty_like(lengths)
         for cols, k in self._trans:
             pam[cols] = pam_length(lengths[cols], r.tendon[cols], k, r.design.fitting_length_m)
         strain = (r.rest - pam) / r.rest
-        F = np.empty_like(lengths)
+        F = np.empty(np.shape(pressure))
         for cols, d in self._groups:
-            F[cols] = festo.force(strain[cols], r.rest[cols], pressure[cols], d, model=r.design.force_model,
-                                  kmax=self._kmax[cols])
+            F[..., cols] = festo.force(strain[cols], r.rest[cols], pressure[..., cols], d,
+                                       model=r.design.force_model, kmax=self._kmax[cols])
         return F * self._scale
 
     def generalized_forces(self, data: mujoco.MjData, T: np.ndarray) -> np.ndarray:
@@ -135,8 +136,7 @@ class PamDrive:
         2·p_max; a = b = 0 for a PAM slack up to p_max) [N, N/Pa]."""
         L = data.ten_length[self.tendons]
         n = len(L)
-        f1 = self.tension(L, np.full(n, P_MAX))
-        f2 = self.tension(L, np.full(n, 2 * P_MAX))
+        f1, f2 = self.tension(L, np.outer([P_MAX, 2 * P_MAX], np.ones(n)))
         live = f1 > 0
         b = np.where(live, (f2 - f1) / P_MAX, 0.0)
         return np.where(live, f1 - b * P_MAX, 0.0), b

@@ -53,6 +53,8 @@ class Scene:
         qadr, dadr: qpos and dof addresses of :attr:`conv.cmap.joints`.
         floor: Floor height [m] (Y).
         harness: Id of the harness weld (-1 without).
+        belt_dof: Dof of the treadmill belt's slide joint (-1: a fixed floor).
+        belt_speed: The belt's speed [m/s], towards −x (the walking direction is +x).
     """
 
     conv: Conversion
@@ -63,6 +65,27 @@ class Scene:
     dadr: np.ndarray
     floor: float
     harness: int
+    belt_dof: int = -1
+    belt_speed: float = 0.0
+
+    def foot_geoms(self, side: str) -> np.ndarray:
+        """Ids of the contact spheres of one foot (``side`` "r" or "l": calcaneus and toes)."""
+        m = self.model
+        bodies = (m.body(f"calcn_{side}").id, m.body(f"toes_{side}").id)
+        return np.array([g for g in range(m.ngeom) if m.geom(g).name.startswith("contact")
+                         and m.geom_bodyid[g] in bodies])
+
+    def foot_gap(self, side: str) -> float:
+        """Height of one foot's lowest contact sphere above the floor [m] (positions of the last position
+        stage)."""
+        g = self.foot_geoms(side)
+        return float(np.min(self.data.geom_xpos[g, 1] - self.model.geom_size[g, 0]) - self.floor)
+
+    def mass(self) -> float:
+        """The robot's mass [kg] (the world's subtree without the belt)."""
+        m = self.model
+        belt = m.body_subtreemass[m.body("belt").id] if self.belt_dof >= 0 else 0.0
+        return float(m.body_subtreemass[0] - belt)
 
     def set_pose(self, q: np.ndarray, qdot: np.ndarray | None = None) -> None:
         """Put the robot at coordinates q (tied joints at their polynomial) with coordinate speeds qdot."""
@@ -89,6 +112,8 @@ class Scene:
     def step(self) -> np.ndarray:
         """One time step with the PAM forces; returns the route tensions used [N]."""
         m, d = self.model, self.data
+        if self.belt_dof >= 0:
+            d.qvel[self.belt_dof] = -self.belt_speed
         mujoco.mj_step1(m, d)
         T = self.drive.apply(d)
         mujoco.mj_step2(m, d)
@@ -106,10 +131,11 @@ class Scene:
 
 def build_scene(conv: Conversion, robot: PamRobot, floor_poses: np.ndarray | None, harness: bool = False,
                 tau: float = TAU, timestep: float = 0.001, floor_offset: float = 0.0,
-                floor: float | None = None) -> Scene:
+                floor: float | None = None, belt_speed: float | None = None) -> Scene:
     """The scene of a converted robot: foot contacts, a floor at height ``floor`` [m] or, without it, touching
     the lowest foot sphere over ``floor_poses`` (N, n_coordinates), lowered by ``floor_offset`` [m]; a pelvis
-    harness when asked."""
+    harness when asked; with ``belt_speed`` [m/s] the floor is a treadmill belt running at that speed towards
+    −x (its velocity set before every step)."""
     spec = replace(conv.spec, contacts=foot_contacts(), floor=None, harness="pelvis" if harness else None,
                    meshes={}, timestep=timestep, limit_all=True, damping=DAMPING)
     model = mujoco.MjModel.from_xml_string(mjcf_document(conv.model.osim, conv.cmap, spec))
@@ -124,7 +150,12 @@ def build_scene(conv: Conversion, robot: PamRobot, floor_poses: np.ndarray | Non
         low = min(low, float(np.min(data.geom_xpos[geoms, 1] - model.geom_size[geoms, 0])))
     low -= floor_offset
     spec.floor = low
+    spec.belt = belt_speed is not None
     model = mujoco.MjModel.from_xml_string(mjcf_document(conv.model.osim, conv.cmap, spec))
     data = mujoco.MjData(model)
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, safe(j.name)) for j in conv.cmap.joints]
+    qadr, dadr = model.jnt_qposadr[ids], model.jnt_dofadr[ids]      # the belt's joint, when any, comes first
     weld = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, "harness") if harness else -1
-    return Scene(conv, model, data, PamDrive(robot, model, conv.cmap, tau=tau), qadr, dadr, low, weld)
+    belt = int(model.jnt_dofadr[model.joint("belt").id]) if spec.belt else -1
+    return Scene(conv, model, data, PamDrive(robot, model, conv.cmap, tau=tau), qadr, dadr, low, weld, belt,
+                 float(belt_speed or 0.0))
