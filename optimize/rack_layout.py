@@ -42,6 +42,8 @@ BRACKET_MAX_M = 0.05
 SLACK_M = 0.01
 #: Spacing of the points along a body or cable checked against bone [m].
 STEP_M = 0.005
+#: Tilts [deg] of a body from its bone's shaft tried besides the shaft direction itself.
+TILTS = ((6.0, 0.0), (-6.0, 0.0), (0.0, 6.0), (0.0, -6.0))
 #: Extra clearance a candidate keeps from the other bones at the sampled poses, for the poses between them [m].
 MARGIN_M = 0.002
 
@@ -68,6 +70,20 @@ class Candidate:
     route_end: tuple = (0.0, 0.0, 0.0)
 
 
+def _long_axis(V: np.ndarray) -> np.ndarray:
+    """Unit principal axis of the largest spread of the points ``V`` (a bone's vertices): its shaft."""
+    w, vec = np.linalg.eigh(np.cov((V - V.mean(axis=0)).T))
+    return vec[:, -1] / np.linalg.norm(vec[:, -1])
+
+
+def _tilted(u: np.ndarray, angle_deg: tuple[float, float]) -> np.ndarray:
+    """``u`` turned by the two angles [deg] about the two axes completing it (:func:`_frame`)."""
+    e1, e2 = _frame(u)
+    a, b = np.radians(angle_deg)
+    v = u + np.tan(a) * e1 + np.tan(b) * e2
+    return v / np.linalg.norm(v)
+
+
 def _frame(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors completing ``u`` to an orthonormal frame."""
     t = np.array([1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
@@ -89,20 +105,21 @@ def candidates(k: int, pam, end: str, bones, fitting: float, angles: int = 16,
     """Rack candidates of PAM ``k`` at its route's ``end`` passing the host-frame checks of the module
     docstring (the pose-dependent ones: :func:`keep_clear`). ``heights``: offsets of the guide from the route's
     end point across the body's direction [m]; ``shifts``: along it [m]; the body runs from the guide along the
-    host frame's y axis towards the bone's middle and, with ``both_ways``, along every other axis direction too
+    host bone's shaft (the principal axis of its mesh's vertices) towards the bone's middle, or tilted from it by
+    :data:`TILTS`, and, with ``both_ways``, the other way and along the host frame's axes across the shaft too
     (the checks keep the ones that fit)."""
     g = route_end(pam, end)
     if type(g) is not PathPoint or not bones.meshes.get(g.body):
         return []
     host, G = g.body, np.asarray(g.location, float)
     V = np.concatenate([m.vertices for m in bones.meshes[host]])
-    mid = 0.5 * (V[:, 1].min() + V[:, 1].max())
-    towards = 1.0 if mid > G[1] else -1.0
+    shaft = _long_axis(V)
+    towards = shaft if np.dot(V.mean(axis=0) - G, shaft) > 0 else -shaft
     r = body_radius(pam.diameter_mm)
     length = pam.resting_length_m + 2 * fitting
-    axes = [np.array([0.0, towards, 0.0])]
+    axes = [towards] + [_tilted(towards, t) for t in TILTS]
     if both_ways:
-        axes += [np.array([0.0, -towards, 0.0])] + [s * e for e in np.eye(3)[[0, 2]] for s in (1.0, -1.0)]
+        axes += [-towards] + [s * e for e in np.eye(3) for s in (1.0, -1.0) if abs(np.dot(e, shaft)) < 0.9]
     out = []
     for u in axes:
         out += _ring(k, end, host, G, u, r, length, bones, angles, heights, shifts, gap, bracket_max)
@@ -318,7 +335,7 @@ def layout(design, model, bones, q_random: np.ndarray, q_gait: np.ndarray, gap: 
     for done in range(1, rounds + 1):
         pick = choose(pool, pairs, len(design.pams), time_limit)
         left = [k for k in range(len(design.pams)) if k not in pick]
-        if not left:
+        if not left or done == rounds:
             break
         bodies = _route_bodies(design, model, np.vstack([q_random, q_gait]), None)
         radii = [body_radius(p.diameter_mm) for p in design.pams]

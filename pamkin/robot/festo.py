@@ -116,6 +116,9 @@ __all__ = [
     "MODELS",
     "FestoForceModel",
     "FestoModel",
+    "ForceLaw",
+    "canonical_model",
+    "force_law",
     "check_diameter",
     "f620",
     "force",
@@ -372,6 +375,12 @@ def check_diameter(diameter_mm: Any) -> int:
         if diameter_mm == d:
             return d
     raise ParameterError(f"unknown Festo DMSP diameter {diameter_mm!r} mm; known: {DIAMETERS_MM}")
+
+
+def canonical_model(model: str) -> str:
+    """The force model's canonical name (``"v3"``, ``"v0"`` or ``"hunt2017"``) for a name or alias; raises
+    ParameterError for an unknown one."""
+    return _check_model(model)
 
 
 def _check_model(model: str) -> str:
@@ -865,3 +874,53 @@ class FestoForceModel:
                 rest_length).asarray(rest_length))
         return kmax(rest_length, self.diameter_mm, model=self.name,
                     thesis_unit_slip=self.thesis_unit_slip)
+
+
+@dataclass(frozen=True)
+class ForceLaw:
+    """The measured (v3) force law of a fixed set of PAMs, its inputs checked once: for simulations that
+    evaluate it every step (:mod:`pamkin.sim.pams`). At a fixed strain the v3 tension is affine in pressure,
+    ``F = max(a(ε) + b(ε)·p, 0)`` (module docstring); :meth:`affine` gives a and b, :meth:`__call__` the
+    tension — both equal to :func:`force` (``model="v3"``, no smoothing) to round-off. Build with
+    :func:`force_law`.
+
+    Attributes (one entry per PAM):
+        kmax: Free contraction at 620 kPa [-].
+        f620: Force scale [N].
+        c0, c1, c2: The size's v3 coefficients [-].
+    """
+
+    kmax: np.ndarray
+    f620: np.ndarray
+    c0: np.ndarray
+    c1: np.ndarray
+    c2: np.ndarray
+
+    def affine(self, strain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(a, b) [N, N/Pa] at contractions ``strain`` (n,): the unclipped tension is a + b·p."""
+        rel = np.asarray(strain, float) / self.kmax
+        a = self.c0 * (np.exp(-self.c1 * rel) - 1.0) * self.f620
+        b = np.exp(-self.c2 * rel * rel) * self.f620 / (_P_REF_KPA * 1e3)
+        return a, b
+
+    def __call__(self, strain: np.ndarray, pressure: np.ndarray) -> np.ndarray:
+        """Tension [N] at contractions ``strain`` (n,) and gauge pressures ``pressure`` (..., n) [Pa]."""
+        a, b = self.affine(strain)
+        return np.maximum(a + b * np.asarray(pressure, float), 0.0)
+
+
+def force_law(rest_length: Array, diameter_mm: Array, kmax: Array | None = None) -> ForceLaw:
+    """:class:`ForceLaw` of PAMs with resting lengths [m] and Festo diameters (one per PAM, any mix of
+    10/20/40), ``kmax`` as in :func:`force` (default: the v3 model's). Raises ParameterError on bad input."""
+    l0 = np.atleast_1d(np.asarray(rest_length, float))
+    dia = np.atleast_1d(np.asarray(diameter_mm))
+    if l0.shape != dia.shape:
+        raise ParameterError(f"one diameter per resting length: {dia.shape} vs {l0.shape}")
+    _check("rest_length", l0, low=0.0, low_open=True)
+    ds = [check_diameter(d) for d in dia.tolist()]
+    km = np.array([_kmax_expr(np, l, d, "v3", False) for l, d in zip(l0, ds)], float).reshape(l0.shape) \
+        if kmax is None else np.broadcast_to(np.asarray(kmax, float), l0.shape).copy()
+    _check("kmax", km, low=0.0, low_open=True, high=1.0, high_open=True)
+    f620_ = np.array([_f620_expr(np, l, d) for l, d in zip(l0, ds)], float).reshape(l0.shape)
+    c = np.array([_data().v3_coeffs[d] for d in ds], float).reshape(l0.shape + (3,))
+    return ForceLaw(km, f620_, c[..., 0], c[..., 1], c[..., 2])

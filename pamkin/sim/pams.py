@@ -82,6 +82,9 @@ class PamDrive:
         self._kmax = np.zeros(len(robot.names))           # constant per PAM: computed once
         for cols, d in self._groups:
             self._kmax[cols] = festo.kmax(robot.rest[cols], d, model=model_name)
+        #: the v3 law with its constants evaluated once (None: another force model, evaluated by festo.force)
+        self._law = (festo.force_law(robot.rest, robot.diameter, kmax=self._kmax)
+                     if festo.canonical_model(model_name) == "v3" else None)
         self._trans = [(np.nonzero(robot.transmission == k)[0], int(k)) for k in np.unique(robot.transmission)]
         self._scale = robot.n_parallel / robot.transmission
 
@@ -93,6 +96,8 @@ class PamDrive:
         for cols, k in self._trans:
             pam[cols] = pam_length(lengths[cols], r.tendon[cols], k, r.design.fitting_length_m)
         strain = (r.rest - pam) / r.rest
+        if self._law is not None:
+            return self._law(strain, pressure) * self._scale
         F = np.empty(np.shape(pressure))
         for cols, d in self._groups:
             F[..., cols] = festo.force(strain[cols], r.rest[cols], pressure[..., cols], d,

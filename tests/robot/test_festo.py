@@ -378,3 +378,29 @@ def test_bad_inputs() -> None:
         festo.force(0.1, 0.3, out_of_range="clip")
     with pytest.raises(ParameterError, match="broadcast"):
         festo.hunt_force([0.1, 0.2], [1e5, 2e5, 3e5], 0.3)
+
+
+def test_force_law_equals_force():
+    """The precomputed v3 law of 60 PAMs of mixed sizes equals festo.force (v3) to round-off, at strains from
+    stretched to past kmax and pressures 0..700 kPa (several pressure rows at once); its affine form gives the
+    unclipped tension; bad input is named."""
+    from pamkin.robot.festo import force_law
+
+    rng = np.random.default_rng(7)
+    n = 60
+    d = rng.choice([10, 20, 40], n)
+    l0 = rng.uniform(0.1, 0.5, n)
+    eps = rng.uniform(-0.03, 0.3, n)
+    p = rng.uniform(0.0, 7e5, (3, n))
+    law = force_law(l0, d)
+    ref = np.array([[festo.force(eps[i], l0[i], p[r, i], int(d[i])) for i in range(n)] for r in range(3)])
+    np.testing.assert_allclose(law(eps, p), ref, rtol=1e-12, atol=1e-9)
+    a, b = law.affine(eps)
+    np.testing.assert_allclose(np.maximum(a + b * p[0], 0.0), ref[0], rtol=1e-12, atol=1e-9)
+    km = np.full(n, 0.2)
+    ref_k = [festo.force(eps[i], l0[i], p[0, i], int(d[i]), kmax=0.2) for i in range(n)]
+    np.testing.assert_allclose(force_law(l0, d, kmax=km)(eps, p[0]), ref_k, rtol=1e-12, atol=1e-9)
+    with pytest.raises(ParameterError, match="diameter"):
+        force_law([0.2], [30])
+    with pytest.raises(ParameterError, match="rest_length"):
+        force_law([-0.2], [20])
