@@ -291,6 +291,23 @@ def _route_bodies(design, model, q: np.ndarray, ks) -> list[list]:
     return out
 
 
+def _drop_near(pool: list[Candidate], pairs: np.ndarray, design, model, q: np.ndarray, obstacles: list[int],
+               gap: float) -> tuple[list[Candidate], np.ndarray]:
+    """``pool`` without the candidates closer than ``gap`` to the bodies of the PAMs ``obstacles`` (indices)
+    where they are at poses ``q``, and ``pairs`` renumbered for it."""
+    if not obstacles or not pool:
+        return pool, pairs
+    bodies = _route_bodies(design, model, q, None)
+    radii = [body_radius(p.diameter_mm) for p in design.pams]
+    st = model.kinematics.forward(q, warn_range=False)
+    kept = _clear_of(pool, [bodies[k] for k in obstacles], [radii[k] for k in obstacles], st, model.kinematics, gap)
+    index = {id(c): i for i, c in enumerate(pool)}
+    remap = np.full(len(pool), -1)
+    remap[[index[id(c)] for c in kept]] = np.arange(len(kept))
+    pairs = remap[pairs] if len(pairs) else pairs
+    return kept, pairs[(pairs >= 0).all(axis=1)] if len(pairs) else pairs
+
+
 def _clear_of(cands: list[Candidate], pieces: list, radii: list[float], state, kin, gap: float) -> list[Candidate]:
     """The candidates that keep ``gap`` from every body of ``pieces`` (route bodies at the poses of ``state``)."""
     if not cands or not pieces:
@@ -308,51 +325,46 @@ def _clear_of(cands: list[Candidate], pieces: list, radii: list[float], state, k
 
 def layout(design, model, bones, q_random: np.ndarray, q_gait: np.ndarray, gap: float = BODY_GAP_M,
            bracket_max: float = BRACKET_MAX_M, angles: int = 16, time_limit: float = 120.0, rounds: int = 1,
-           say=None):
+           movable: set[int] | None = None, say=None):
     """Every PAM of ``design`` hung on the rack :func:`choose` gives it, the others left on their routes:
     ``(new design, RackReport)``. Candidates (:func:`candidates`) are checked at the random poses (right-leg
     bones) and the walking poses (every bone); conflicts over both, right against left over the walking
-    poses. The PAMs left on their routes are obstacles: candidates closer than ``gap`` to their bodies are
-    dropped and the choice made again (at most ``rounds`` times)."""
+    poses. Only the PAMs whose ids are in ``movable`` (default: all) and that hang on no rack yet get
+    candidates; the others are obstacles where they are (candidates closer than ``gap`` to their bodies are
+    dropped). With ``rounds`` > 1 the PAMs left on their routes become obstacles too and the choice is made
+    again (at most ``rounds`` times; it places fewer PAMs)."""
     kin = model.kinematics
     st, sg = kin.forward(q_random, warn_range=False), kin.forward(q_gait, warn_range=False)
     right = [b for b in bones.bodies if not b.endswith("_l")]
+    moving = [k for k, p in enumerate(design.pams) if (movable is None or p.id in movable) and not has_rack(p)]
     pool = []
-    for k, p in enumerate(design.pams):
-        if has_rack(p):
-            continue
+    for k in moving:
         for end in ("origin", "insertion"):
-            c = candidates(k, p, end, bones, design.fitting_length_m, angles=angles, gap=gap,
+            c = candidates(k, design.pams[k], end, bones, design.fitting_length_m, angles=angles, gap=gap,
                            bracket_max=bracket_max)
             c = keep_clear(c, bones, st, kin, gap, right)
             pool += keep_clear(c, bones, sg, kin, gap) if len(q_gait) else c
     if say:
-        say(f"rack: {len(pool)} candidates for {len({c.pam for c in pool})} of {len(design.pams)} PAMs")
+        say(f"rack: {len(pool)} candidates for {len({c.pam for c in pool})} of {len(moving)} PAMs")
     states = [st, sg] if len(q_gait) else [st]
     pairs = conflicts(pool, states, kin, gap, mirrored=(sg, mirror_candidate) if len(q_gait) else None)
     n_pairs = len(pairs)
+    q_all = np.vstack([q_random, q_gait])
+    fixed = [k for k in range(len(design.pams)) if k not in moving]
+    pool, pairs = _drop_near(pool, pairs, design, model, q_all, fixed, gap)
     pick, done = {}, 0
     for done in range(1, rounds + 1):
         pick = choose(pool, pairs, len(design.pams), time_limit)
-        left = [k for k in range(len(design.pams)) if k not in pick]
+        left = [k for k in moving if k not in pick]
         if not left or done == rounds:
             break
-        bodies = _route_bodies(design, model, np.vstack([q_random, q_gait]), None)
-        radii = [body_radius(p.diameter_mm) for p in design.pams]
-        st_all = kin.forward(np.vstack([q_random, q_gait]), warn_range=False)
-        kept = _clear_of(pool, [bodies[k] for k in left], [radii[k] for k in left], st_all, kin, gap)
-        if len(kept) == len(pool):
+        n = len(pool)
+        pool, pairs = _drop_near(pool, pairs, design, model, q_all, left, gap)
+        if len(pool) == n:
             break
-        index = {id(c): i for i, c in enumerate(pool)}
-        keep_ids = np.array([index[id(c)] for c in kept])
-        remap = np.full(len(pool), -1)
-        remap[keep_ids] = np.arange(len(kept))
-        pairs = remap[pairs]
-        pairs = pairs[(pairs >= 0).all(axis=1)]
-        pool = kept
     new = design
     for k, c in pick.items():
         new = new.replace_pam(rack_pam(design.pams[k], c.mount))
     placed = {design.pams[k].id: c for k, c in pick.items()}
-    unplaced = [p.id for k, p in enumerate(design.pams) if k not in pick]
+    unplaced = [design.pams[k].id for k in moving if k not in pick]
     return new, RackReport(placed, unplaced, len(pool), n_pairs, done)

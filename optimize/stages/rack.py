@@ -1,6 +1,7 @@
 """Rack stage (``[rack] enabled``): every PAM body hung on brackets along a bone of its route's end, the whole
 leg's layout chosen at once (:func:`pamkin.optimize.rack_layout.layout`); routes, moment arms and PAM strains
-stay as the earlier stages left them (:mod:`pamkin.robot.rack`)."""
+stay as the earlier stages left them (:mod:`pamkin.robot.rack`). In a run of some actuators only
+(``--actuators``), the others stay where the seed design has them, as obstacles."""
 
 from __future__ import annotations
 
@@ -26,9 +27,10 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
 
     def say(line: str) -> None:
         print(line, file=ctx.stream, flush=True)
+    ids = {r.id for r in results}
     new, rep = layout(design, ctx.human, ctx.bones, q, qg, gap=cfg.gap_m, bracket_max=cfg.bracket_max_m,
-                      angles=cfg.angles, time_limit=cfg.time_limit_s, say=say)
-    lines = [f"rack: {len(rep.placed)} of {len(design.pams)} PAMs hung on racks ({rep.candidates} candidates, "
+                      angles=cfg.angles, time_limit=cfg.time_limit_s, movable=ids, say=say)
+    lines = [f"rack: {len(rep.placed)} of {len(ids)} PAMs hung on racks ({rep.candidates} candidates, "
              f"{rep.conflicts} conflicting pairs, {rep.rounds} rounds); left on their routes: "
              + (", ".join(f"{i} {design.pam(i).name}" for i in rep.unplaced) or "none")]
     lines += [f"rack: actuator {i} {design.pam(i).name} on {c.mount.host} at its {c.mount.end}, bracket "
@@ -36,5 +38,4 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
     for line in lines:
         say(line)
     ctx.rack = lines
-    ids = {r.id for r in results}
     return [dataclasses.replace(r, pam=new.pam(r.id)) if r.id in ids else r for r in results]

@@ -171,3 +171,21 @@ def test_the_pipeline_stage_racks_the_toy_pams(skel):
     out = stage.run(ctx, results)
     assert all(has_rack(r.pam) for r in out)
     assert ctx.rack[0].startswith("rack: 2 of 2 PAMs hung on racks") and "left on their routes: none" in ctx.rack[0]
+
+
+def test_only_the_movable_pams_move_and_the_others_are_obstacles(skel):
+    """Two toy PAMs on one route; only the second may move: it ends on a rack ≥ 5 mm from the first one's body,
+    which stays on its route."""
+    cyl = _toy_bone()
+    bones = BoneSet.from_meshes(skel, {"tibia_r": [(cyl.vertices, cyl.faces)]})
+    route = (PathPoint("p1", "tibia_r", (0.025, -0.12, 0.0)), PathPoint("p2", "calcn_r", (0.1, 0.03, 0.0)))
+    base = load_design("thesis").pam(16)
+    pams = tuple(dataclasses.replace(base, id=i, name=f"toy {i}", points=route, resting_length_m=0.15,
+                                     tendon_length_m=0.2, rollers=(), pam_on=None, pam_at=None) for i in (1, 2))
+    des = Design("toy", pams, fitting_length_m=0.0125)
+    q = _poses(skel, 20)
+    new, rep = layout(des, skel, bones, q, q[:0], angles=12, time_limit=30, movable={2})
+    assert list(rep.placed) == [2] and rep.unplaced == [] and not has_rack(new.pam(1)) and has_rack(new.pam(2))
+    caps = [pam_capsules(pts, pl.segment, L + 0.025, pl.side) for pl, pts, L in placements(new, skel, q)]
+    r = body_radius(20)
+    assert np.min(body_distances(caps[0], caps[1], r, r)) >= BODY_GAP_M - 1e-9
