@@ -15,7 +15,7 @@ A step is ``mj_step1`` (positions, tendon lengths), the PAM forces at those leng
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import mujoco
 import numpy as np
@@ -67,6 +67,7 @@ class Scene:
     harness: int
     belt_dof: int = -1
     belt_speed: float = 0.0
+    _prim: tuple | None = field(default=None, init=False, repr=False)
 
     def foot_geoms(self, side: str) -> np.ndarray:
         """Ids of the contact spheres of one foot (``side`` "r" or "l": calcaneus and toes)."""
@@ -96,18 +97,24 @@ class Scene:
             d.qvel[self.dadr] = self.conv.cmap.dqpos_dq(q)[0] @ qdot
         mujoco.mj_forward(self.model, d)
 
+    def _primary(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per coordinate of the drive: its primary joint's index, slope and offset (cached)."""
+        if self._prim is None:
+            cmap = self.conv.cmap
+            rows = [cmap.primary[c] for c in self.drive.coordinates]
+            self._prim = tuple(np.array(v) for v in zip(*rows))
+        return self._prim
+
     def positions(self) -> np.ndarray:
         """The independent coordinates of the current state, in the drive's order (``drive.coordinates``)
-        [rad, m]."""
-        vals = self.conv.cmap.coordinates_of(self.data.qpos[self.qadr])
-        return np.array([vals[c][0] for c in self.drive.coordinates])
+        [rad, m] (a primary joint's value less its offset, divided by its slope)."""
+        idx, a, b = self._primary()
+        return (self.data.qpos[self.qadr[idx]] - b) / a
 
     def speeds(self) -> np.ndarray:
         """Their speeds [rad/s, m/s] (a primary joint's speed divided by its slope)."""
-        cmap = self.conv.cmap
-        idx = [cmap.primary[c][0] for c in self.drive.coordinates]
-        slope = np.array([cmap.primary[c][1] for c in self.drive.coordinates])
-        return self.data.qvel[self.dadr[idx]] / slope
+        idx, a, _ = self._primary()
+        return self.data.qvel[self.dadr[idx]] / a
 
     def step(self) -> np.ndarray:
         """One time step with the PAM forces; returns the route tensions used [N]."""
