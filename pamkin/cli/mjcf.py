@@ -31,6 +31,10 @@ def add_parsers(sub) -> None:
     s.add_argument("--measure", type=int, default=0, metavar="N",
                    help="measure lengths and moment arms against pamkin on N random poses (default 0: no)")
     s.add_argument("--seed", type=int, default=None, help="seed of the measurement poses (default 2026)")
+    s.add_argument("--couplings", choices=("composed", "quartic"), default="composed",
+                   help="composed (default): splines as least-squares sums of auxiliary joints chained by exact "
+                        "degree-4 ties, conditional path points as sharp smoothstep slides; quartic: one degree-4 "
+                        "joint equality per spline, conditional points always/never/a small wrap geom")
     s.set_defaults(func=cmd_mjcf)
 
 
@@ -51,12 +55,12 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
         from pamkin.robot.biped import design_robot  # noqa: PLC0415
 
         robot = design_robot(None if args.design == "robot" else args.design)
-        conv = sc.convert_robot(robot)
+        conv = sc.convert_robot(robot, couplings=args.couplings)
     else:
         import pamkin  # noqa: PLC0415
 
         model = pamkin.load_osim(args.osim) if args.osim else pamkin.gait2392()
-        conv = sc.convert_model(model, geometry=args.geometry)
+        conv = sc.convert_model(model, geometry=args.geometry, couplings=args.couplings)
     if not args.out:
         out = Path.cwd() / f"{re.sub(r'[^A-Za-z0-9_.-]', '_', conv.name)}_mjcf"
         check_output_folder(out, args.force)
@@ -65,7 +69,7 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
     write_conversion(conv, out, args.force, errors, args.measure)
     m = conv.compile()
     print(f"wrote {out}/model.xml: {m.nbody - 1} bodies, {m.njnt} joints ({sum(not j.primary for j in conv.cmap.joints)} "
-          f"tied by polynomials), {m.ntendon} tendons, {len(conv.meshes)} meshes; converted in {conv.seconds:.2f} s")
+          f"tied by polynomials, {len(conv.cmap.aux_bodies)} of them auxiliary), {m.ntendon} tendons, {len(conv.meshes)} meshes; converted in {conv.seconds:.2f} s")
     if errors is not None:
         s = sm.summary(errors, sm.exact_constructs(conv))
         print(f"measured on {args.measure} poses: {s['exact']}/{s['paths']} paths with exact constructs (largest error "
