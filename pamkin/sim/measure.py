@@ -72,8 +72,10 @@ def construct(conv: Conversion, path: str) -> str:
     parts = []
     for point, how in ch.conditional.items():
         parts.append(f"conditional {point}: " + ("always" if how is True else "never" if how is False else how))
-    moving = {j.name.rsplit("-", 1)[0] for j in conv.cmap.joints if not j.primary and j.name.startswith(f"{path}-")}
-    parts += [f"moving point {m.split('-', 2)[-1]}: polynomial" for m in sorted(moving)]
+    moving = {j.name.rsplit("-", 1)[0] for j in conv.cmap.joints if not j.primary and not j.aux
+              and j.name.startswith(f"{path}-") and "-step" not in j.name}
+    how = "composed" if conv.cmap.couplings == "composed" else "polynomial"
+    parts += [f"moving point {m.split('-', 2)[-1]}: {how}" for m in sorted(moving)]
     parts += [f"wrap {g}" for g in ch.wraps if g not in str(ch.conditional)]
     parts += [f"left out {w}" for w in ch.omitted]
     if not parts:
@@ -84,7 +86,8 @@ def construct(conv: Conversion, path: str) -> str:
         spans = {conv.cmap.coordinates[c] for c in np.nonzero(np.any(np.abs(R) > 0, axis=0))[0]}
         tied = sorted({j.name for j in conv.cmap.joints if not j.primary and j.error > 1e-12
                        and j.coordinate in spans and "-" not in j.name})
-        parts += [f"joint polynomial {t}" for t in tied]
+        parts += [f"joint {'composed' if conv.cmap.joints[conv.cmap.joint_index(t)].terms else 'polynomial'} {t}"
+                  for t in tied]
     return "; ".join(parts) if parts else "sites"
 
 

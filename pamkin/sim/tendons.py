@@ -4,8 +4,13 @@
 * A ``MovingPathPoint`` is a site of its own body, a child of the point's body with one slide joint per
   moving component (along the body's axes) tied to the coordinate's primary joint by a degree-4 polynomial
   (:class:`pamkin.sim.joints.CoordinateMap`): approximate where the function is a spline.
-* A ``ConditionalPathPoint`` is a site that the tendon passes through always or never (MuJoCo has no
-  conditional points): the choice with the smaller length error on the fit poses.
+* A ``ConditionalPathPoint`` with a neighbouring point fixed in the same body (composed couplings): a site on
+  a chain of bodies sliding along (point − neighbour), driven by sharp iterated smoothsteps of the coordinate
+  (:func:`step_site`): on the point while OpenSim includes it, on the neighbour (a zero-length segment: the
+  same length as OpenSim's path without it) while it does not; exact outside a band of
+  :data:`pamkin.sim.couplings.STEP_BAND` around each switch, where OpenSim's length jumps.
+  Otherwise a site that the tendon passes through always or never, or a small wrap geom through it
+  (MuJoCo has no conditional points): the choice with the smaller length error on the fit poses.
 * ``WrapCylinder`` and ``WrapSphere`` are wrap geoms (MuJoCo's cylinders are infinite; OpenSim's quadrant
   becomes a side site); ``WrapEllipsoid`` is a sphere or a cylinder (candidates from its radii); a
   ``WrapTorus`` has no MuJoCo counterpart and is left out. MuJoCo wraps a geom placed between two sites, so
@@ -26,6 +31,7 @@ import mujoco
 import numpy as np
 
 from pamkin.opensim.model_file import ConditionalPathPoint, MovingPathPoint
+from pamkin.sim import couplings as cp
 from pamkin.opensim.wrapping import PathWrap, WrapObject
 from pamkin.sim.geometry import MjGeometry
 from pamkin.sim.joints import CoordinateMap, MjJoint
@@ -57,15 +63,98 @@ class PathChoice:
     wraps: list[str]
     omitted: list[str]
     fit_error: float
+    #: Conditional points built as steps: {point: {"switches": [coordinate values], "band": [rad or m],
+    #: "iterations": smoothstep iterations}}.
+    steps: dict = None
+
+#: Grid points on which a conditional point's activity over its coordinate's range is located.
+SWITCH_GRID = 4001
 
 
-def build_sites(paths: Sequence[PathSpec], cmap: CoordinateMap, spec: MjcfSpec) -> list[list[str]]:
-    """Sites (and moving-point bodies and their tied joints) of every path point; returns the site names."""
+def _activity(pt: ConditionalPathPoint, cmap: CoordinateMap) -> tuple[str, object]:
+    """(independent coordinate, vectorised q -> bool: OpenSim includes the point)."""
+    coord, fn = cmap.root(pt.coordinate)
+    lo, hi = pt.range
+    return coord, lambda q: (np.asarray(fn(np.asarray(q, float))) >= lo - 1e-5) & (
+        np.asarray(fn(np.asarray(q, float))) <= hi + 1e-5)
+
+
+def _switches(active, lo: float, hi: float) -> tuple[bool, list[tuple[float, int]]]:
+    """Activity at ``lo`` and the switches inside (lo, hi): (coordinate value, +1 on / −1 off as q rises)."""
+    q = np.linspace(lo, hi, SWITCH_GRID)
+    a = active(q)
     out = []
+    for k in np.nonzero(a[1:] != a[:-1])[0]:
+        x0, x1 = q[k], q[k + 1]
+        for _ in range(60):                     # bisection to round-off
+            xm = 0.5 * (x0 + x1)
+            x0, x1 = (xm, x1) if active(np.array([xm]))[0] == a[k] else (x0, xm)
+        out.append((0.5 * (x0 + x1), 1 if a[k + 1] else -1))
+    return bool(a[0]), out
+
+
+def step_site(name: str, pt: ConditionalPathPoint, neighbour: tuple[str, np.ndarray, np.ndarray],
+              cmap: CoordinateMap, spec: MjcfSpec) -> dict | None:
+    """Build a conditional point as a step site ``name`` (see the module docstring); None when its coordinate
+    never switches inside its range (the always/never candidates then hold it exactly).
+
+    Args:
+        neighbour: (MuJoCo body, position in it [m], the neighbour's location in the point's body [m]).
+    """
+    coord, active = _activity(pt, cmap)
+    if coord not in cmap.primary:
+        return None
+    lo, hi = cmap.ranges[coord]
+    on, sw = _switches(active, lo, hi)
+    d = np.asarray(pt.location, float) - neighbour[2]
+    if not sw or np.linalg.norm(d) < 1e-9:
+        return None
+    _, a, b = cmap.primary[coord]
+    vlo, vhi = sorted((a * lo + b, a * hi + b))
+    c0, terms = float(on), []
+    for q_s, sign in sw:                        # activity = c0 + Σ sign·H(q − q_s), H in the primary value v
+        if a < 0:                               # H(q − q_s) = 1 − H(v − v_s)
+            c0, sign = c0 + sign, -sign
+        terms.append((a * q_s + b, sign))
+    parent, pos = neighbour[0], neighbour[1] + c0 * d
+    n_it = []
+    for t, (v_s, sign) in enumerate(terms):
+        half = max(v_s - vlo, vhi - v_s)
+        k = cp.smoothstep_iterations(half / abs(a))
+        n_it.append(k)
+        names = cmap.add_chain(coord, f"{name}-{t}", cp.step_chain("", v_s, vlo, vhi, k))
+        body = f"{name}-step{t}"
+        spec.point_bodies.append((body, parent, pos))
+        cmap.joints.append(MjJoint(f"{name}-step{t}", body, "slide", np.zeros(3), d / np.linalg.norm(d), coord,
+                                   None, poly=cp.linear_polycoef(sign * np.linalg.norm(d), 0.0),
+                                   source=names[f"s{k}"]))
+        parent, pos = body, np.zeros(3)
+    spec.sites.append(Site(name, parent, np.zeros(3)))
+    return {"switches": [q for q, _ in sw], "band": cp.STEP_BAND, "iterations": n_it, "parent": parent,
+            "active": active}
+
+
+def build_sites(paths: Sequence[PathSpec], cmap: CoordinateMap,
+                spec: MjcfSpec) -> tuple[list[list[str]], list[dict[int, dict]]]:
+    """Sites (and moving-point bodies, step bodies and their tied joints) of every path point; returns the
+    site names and, per path, the conditional points built as steps (:func:`step_site`)."""
+    out, steps = [], []
     for path in paths:
-        names = []
+        names: list[str] = []
+        st: dict[int, dict] = {}
+        steps.append(st)
         for i, pt in enumerate(path.points):
             name = safe(f"{path.name}-{i}-{pt.name}")
+            if isinstance(pt, ConditionalPathPoint) and cmap.couplings == "composed":
+                made = None
+                for nb in _neighbours(path, i, st, cmap):
+                    made = step_site(name, pt, nb, cmap, spec)
+                    if made is not None:
+                        st[i] = made
+                        break
+                if made is not None:
+                    names.append(name)
+                    continue
             if isinstance(pt, MovingPathPoint):
                 body = f"{name}-body"
                 spec.point_bodies.append((body, pt.body))
@@ -84,7 +173,26 @@ def build_sites(paths: Sequence[PathSpec], cmap: CoordinateMap, spec: MjcfSpec) 
                 spec.sites.append(Site(name, pt.body, np.asarray(pt.location, float)))
             names.append(name)
         out.append(names)
-    return out
+    return out, steps
+
+
+def _neighbours(path: PathSpec, i: int, steps: dict[int, dict], cmap: CoordinateMap):
+    """Candidate neighbours of conditional point ``i`` to collapse onto: fixed points of the same body, then
+    earlier step points of the same body whose activity contains the point's (so the point is never on while
+    its neighbour is off); as (MuJoCo body, position in it, location in the point's body)."""
+    pt = path.points[i]
+    for j in (i - 1, i + 1):
+        if 0 <= j < len(path.points):
+            nb = path.points[j]
+            if type(nb).__name__ == "PathPoint" and nb.body == pt.body:
+                loc = np.asarray(nb.location, float)
+                yield nb.body, loc, loc
+    if i > 0 and i - 1 in steps and path.points[i - 1].body == pt.body:
+        coord, active = _activity(pt, cmap)
+        c2, active2 = _activity(path.points[i - 1], cmap)
+        q = np.linspace(*cmap.ranges[coord], SWITCH_GRID)
+        if coord == c2 and not np.any(active(q) & ~active2(q)):
+            yield steps[i - 1]["parent"], np.zeros(3), np.asarray(path.points[i - 1].location, float)
 
 
 def wrap_geoms(wo: WrapObject, spec: MjcfSpec, made: dict) -> list[tuple[str, list[str]]]:
@@ -135,12 +243,15 @@ def _z_to(k: int) -> np.ndarray:
 
 
 def candidates(path: PathSpec, sites: list[str], spec: MjcfSpec, made: dict,
-               standins: dict[int, list[tuple[str, str]]] | None = None) -> list[tuple[Tendon, dict, list, list]]:
+               standins: dict[int, list[tuple[str, str]]] | None = None,
+               steps: dict[int, dict] | None = None) -> list[tuple[Tendon, dict, list, list]]:
     """Every candidate tendon of ``path``: (tendon, conditional choices, wrap geoms used, wraps left out).
 
-    ``standins``: per conditional point index, wrap geoms (geom, side site) that may stand for it."""
+    ``standins``: per conditional point index, wrap geoms (geom, side site) that may stand for it;
+    ``steps``: conditional points built as steps (always in the tendon)."""
     standins = standins or {}
-    cond = [i for i, pt in enumerate(path.points) if isinstance(pt, ConditionalPathPoint)]
+    steps = steps or {}
+    cond = [i for i, pt in enumerate(path.points) if isinstance(pt, ConditionalPathPoint) and i not in steps]
     wrap_opts = []
     omitted = []
     for w in path.wraps:
@@ -179,6 +290,7 @@ def candidates(path: PathSpec, sites: list[str], spec: MjcfSpec, made: dict,
                         items.append(("geom", c[1], c[2]))
             choice = {path.points[i].name: (inc[k] if isinstance(inc[k], bool) else f"wrap {inc[k][0]}")
                       for k, i in enumerate(cond)}
+            choice.update({path.points[i].name: "step" for i in sorted(steps)})
             out.append((Tendon(path.name, items), choice, [c[1] for c in used], omitted))
     return out
 
@@ -188,7 +300,8 @@ STANDIN_RADII = (0.002, 0.008, 0.02)
 
 
 def conditional_standins(osim, cmap: CoordinateMap, paths: Sequence[PathSpec], sites: list[list[str]],
-                         q_fit: np.ndarray, spec: MjcfSpec) -> list[dict[int, list[tuple[str, str]]]]:
+                         q_fit: np.ndarray, spec: MjcfSpec,
+                         steps: list[dict[int, dict]] | None = None) -> list[dict[int, list[tuple[str, str]]]]:
     """Wrap geoms that may stand for each conditional path point: a sphere and a cylinder through the point,
     on the side of the straight line between its neighbours where the point bends the path (the mean
     direction, in the point's body, over the fit poses where OpenSim includes it), with a side site beyond
@@ -196,7 +309,8 @@ def conditional_standins(osim, cmap: CoordinateMap, paths: Sequence[PathSpec], s
     out geometrically (OpenSim drops it by its coordinate's range)."""
     out: list[dict[int, list[tuple[str, str]]]] = [{} for _ in paths]
     todo = [(m, i) for m, p in enumerate(paths) for i, pt in enumerate(p.points)
-            if isinstance(pt, ConditionalPathPoint) and 0 < i < len(p.points) - 1]
+            if isinstance(pt, ConditionalPathPoint) and 0 < i < len(p.points) - 1
+            and not (steps and i in steps[m])]
     if not todo:
         return out
     model = mujoco.MjModel.from_xml_string(mjcf_document(osim, cmap, MjcfSpec(spec.name, spec.sites, [], [],
@@ -245,10 +359,10 @@ def choose(osim, cmap: CoordinateMap, paths: Sequence[PathSpec], reference: Call
            q_fit: np.ndarray, spec: MjcfSpec) -> list[PathChoice]:
     """Build every path's candidates, evaluate them at ``q_fit`` in MuJoCo against ``reference(q_fit)``
     (N, n_paths) lengths [m] and keep the best per path (``spec.tendons`` set to the chosen ones)."""
-    sites = build_sites(paths, cmap, spec)
-    standins = conditional_standins(osim, cmap, paths, sites, q_fit, spec)
+    sites, steps = build_sites(paths, cmap, spec)
+    standins = conditional_standins(osim, cmap, paths, sites, q_fit, spec, steps)
     made: dict = {}
-    cands = [candidates(p, s, spec, made, st) for p, s, st in zip(paths, sites, standins)]
+    cands = [candidates(p, s, spec, made, st, sp) for p, s, st, sp in zip(paths, sites, standins, steps)]
     fit_spec = MjcfSpec(spec.name, spec.sites, spec.geoms,
                         [Tendon(f"{t.name}~{k}", t.path) for cs in cands for k, (t, _, _, _) in enumerate(cs)],
                         spec.point_bodies)
@@ -262,7 +376,10 @@ def choose(osim, cmap: CoordinateMap, paths: Sequence[PathSpec], reference: Call
         err = np.abs(L[:, col:col + len(cs)] - Lref[:, m:m + 1]).max(axis=0)
         best = int(np.argmin(err))
         t, choice, used, omitted = cs[best]
-        out.append(PathChoice(path.name, t, choice, used, omitted, float(err[best])))
+        out.append(PathChoice(path.name, t, choice, used, omitted, float(err[best]),
+                              {path.points[i].name: {k: v for k, v in st.items() if k in ("switches", "band",
+                                                                                            "iterations")}
+                               for i, st in steps[m].items()}))
         col += len(cs)
     spec.tendons = [c.tendon for c in out]
     _prune(spec)
