@@ -13,10 +13,11 @@ def add_parsers(sub) -> None:
         description="Convert an OpenSim model (default: the built-in Gait2392) or a robot design (both sides, "
                     "PAM routes as tendons) to a MuJoCo model: bodies with the model's masses and inertias, one "
                     "hinge or slide per variable joint axis, spline axes and moving path points as slide/hinge "
-                    "joints tied by degree-4 joint-equality polynomials, muscles or PAM routes as spatial "
+                    "joints tied to their coordinate's joint (--couplings), muscles or PAM routes as spatial "
                     "tendons through sites, wrap cylinders and spheres as wrap geoms (ellipsoids: a sphere or "
-                    "cylinder; conditional path points: always, never or a small wrap geom through the point, "
-                    "whichever fits pamkin's lengths best on 300 fit poses). Writes model.xml, meshes/*.stl and "
+                    "cylinder; conditional path points with a fixed neighbour on their body: a site sliding onto "
+                    "it by a sharp step of the coordinate (composed), else always, never or a small wrap geom "
+                    "through the point, whichever fits pamkin's lengths best on 300 fit poses). Writes model.xml, meshes/*.stl and "
                     "conversion.json; with --measure N also errors.csv, errors.png and errors.json: tendon "
                     "lengths and moment arms against pamkin's on N held-out random poses.")
     src = s.add_mutually_exclusive_group()
@@ -77,4 +78,8 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
               f"{s['length_within_goal']} within 0.5 mm length, {s['arm_within_goal']} within 1 mm moment arm "
               f"(p99: {s['arm_p99_within_goal']}); worst {s['length_max_m'] * 1e3:.2f} mm length, "
               f"{s['arm_max_m'] * 1e3:.2f} mm moment arm (errors.csv, errors.png)")
+        if s["band_poses"]:
+            print(f"outside the conditional steps' bands ({s['band_poses']} path-poses inside them): "
+                  f"{s['length_within_goal_outside_bands']} within 0.5 mm length, "
+                  f"{s['arm_within_goal_outside_bands']} within 1 mm moment arm")
     return 0

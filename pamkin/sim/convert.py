@@ -81,7 +81,8 @@ class Conversion:
                                    for c, (i, a, b) in self.cmap.primary.items()},
                 "tied_joints": ties,
                 "paths": [{"path": c.name, "conditional_points": c.conditional, "wrap_geoms": c.wraps,
-                           "wraps_left_out": c.omitted, "fit_max_length_error_m": c.fit_error}
+                           "wraps_left_out": c.omitted, "fit_max_length_error_m": c.fit_error,
+                           **({"conditional_steps": c.steps} if c.steps else {})}
                           for c in self.choices]}
 
 

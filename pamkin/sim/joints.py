@@ -175,7 +175,8 @@ class CoordinateMap:
                 self.tie(mj)
 
     def tie(self, mj: MjJoint) -> None:
-        """Fit ``mj``'s polynomial in its coordinate's primary joint (raises when there is none)."""
+        """Fit ``mj``'s polynomial in its coordinate's primary joint (raises when there is none); with composed
+        couplings, refit it as a sum of auxiliary joints where that deviates less (:meth:`_tie_composed`)."""
         if mj.coordinate not in self.primary:
             raise UnsupportedFeatureError(
                 self.osim.path, f"coordinate {mj.coordinate!r} moves no TransformAxis linearly, so no MuJoCo "

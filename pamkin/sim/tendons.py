@@ -25,12 +25,12 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
 
-from pamkin.opensim.model_file import ConditionalPathPoint, MovingPathPoint
+from pamkin.opensim.model_file import ConditionalPathPoint, MovingPathPoint, PathPoint
 from pamkin.sim import couplings as cp
 from pamkin.opensim.wrapping import PathWrap, WrapObject
 from pamkin.sim.geometry import MjGeometry
@@ -63,9 +63,10 @@ class PathChoice:
     wraps: list[str]
     omitted: list[str]
     fit_error: float
-    #: Conditional points built as steps: {point: {"switches": [coordinate values], "band": [rad or m],
-    #: "iterations": smoothstep iterations}}.
-    steps: dict = None
+    #: Conditional points built as steps: {point: {"coordinate": independent coordinate, "switches":
+    #: [its values], "band": full width [rad or m],
+    #: "iterations": smoothstep iterations per switch}}.
+    steps: dict[str, dict] = field(default_factory=dict)
 
 #: Grid points on which a conditional point's activity over its coordinate's range is located.
 SWITCH_GRID = 4001
@@ -130,8 +131,8 @@ def step_site(name: str, pt: ConditionalPathPoint, neighbour: tuple[str, np.ndar
                                    source=names[f"s{k}"]))
         parent, pos = body, np.zeros(3)
     spec.sites.append(Site(name, parent, np.zeros(3)))
-    return {"switches": [q for q, _ in sw], "band": cp.STEP_BAND, "iterations": n_it, "parent": parent,
-            "active": active}
+    return {"coordinate": coord, "switches": [q for q, _ in sw], "band": cp.STEP_BAND, "iterations": n_it,
+            "parent": parent, "active": active}
 
 
 def build_sites(paths: Sequence[PathSpec], cmap: CoordinateMap,
@@ -184,7 +185,7 @@ def _neighbours(path: PathSpec, i: int, steps: dict[int, dict], cmap: Coordinate
     for j in (i - 1, i + 1):
         if 0 <= j < len(path.points):
             nb = path.points[j]
-            if type(nb).__name__ == "PathPoint" and nb.body == pt.body:
+            if isinstance(nb, PathPoint) and not isinstance(nb, ConditionalPathPoint) and nb.body == pt.body:
                 loc = np.asarray(nb.location, float)
                 yield nb.body, loc, loc
     if i > 0 and i - 1 in steps and path.points[i - 1].body == pt.body:
@@ -377,8 +378,8 @@ def choose(osim, cmap: CoordinateMap, paths: Sequence[PathSpec], reference: Call
         best = int(np.argmin(err))
         t, choice, used, omitted = cs[best]
         out.append(PathChoice(path.name, t, choice, used, omitted, float(err[best]),
-                              {path.points[i].name: {k: v for k, v in st.items() if k in ("switches", "band",
-                                                                                            "iterations")}
+                              {path.points[i].name: {k: v for k, v in st.items() if k in ("coordinate", "switches",
+                                                                                            "band", "iterations")}
                                for i, st in steps[m].items()}))
         col += len(cs)
     spec.tendons = [c.tendon for c in out]

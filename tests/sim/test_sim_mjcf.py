@@ -13,9 +13,9 @@ from locations import SHARED
 from pamkin.human.model import gait2392, load_osim
 from pamkin.robot.biped import design_robot
 from pamkin.sim.convert import convert_model, convert_robot
-from pamkin.sim.geometry import MjGeometry
+from pamkin.sim.geometry import MjGeometry, compare
 from pamkin.sim.joints import CoordinateMap
-from pamkin.sim.measure import exact_constructs
+from pamkin.sim.measure import band_poses, exact_constructs
 from pamkin.sim.mjcf import safe
 from pamkin.opensim.model_file import load_osim_file
 
@@ -100,6 +100,7 @@ def test_conditional_steps_exact_outside_their_band(g2392):
     k = g2392.paths.index("psoas_r")
     step = g2392.choices[k].steps["psoas_r-P3"]
     assert step["switches"] == pytest.approx([-1.5708 - 1e-5, 0.785398 + 1e-5], abs=1e-9)
+    assert g2392.summary()["paths"][k]["conditional_steps"]["psoas_r-P3"]["band"] == 2e-3   # conversion.json
     model = g2392.model
     c = model.coordinates.index("hip_flexion_r")
     q = np.repeat(model.random_q(1, seed=4), 7, axis=0)
@@ -113,6 +114,12 @@ def test_conditional_steps_exact_outside_their_band(g2392):
     assert abs(on - off) > 5e-3
     for n in (5, 6):                   # at the switch (site half-way) and 4e-4 rad past it (inside the band)
         assert min(on, off) - 1e-3 <= L[n, 0] <= max(on, off) + 1e-3
+    # the measurement's band mask: the last two poses are inside psoas_r's band, the others outside
+    inside = band_poses(g2392, q)[:, k]
+    assert inside.tolist() == [False] * 5 + [True] * 2
+    err = compare(["psoas_r"], L, np.zeros((7, 1, q.shape[1])), Lr[:, None], np.zeros((7, 1, q.shape[1])),
+                  outside=~inside[:, None])
+    assert err.length_max_out[0] < 1e-9 < err.length_max[0] and err.band_poses[0] == 2
 
 
 def conv_lengths(conv, q):
