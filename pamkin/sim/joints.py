@@ -205,6 +205,16 @@ class CoordinateMap:
         mj.poly = cp.linear_polycoef(0.0, coef[""])
         mj.error, mj.slope_error = err, derr
 
+    def add_aux(self, tag: str, coordinate: str, poly: np.ndarray, source: str = "",
+                terms: dict[str, float] | None = None) -> str:
+        """Add one auxiliary slide joint (on its own body) of ``coordinate``: ``poly`` of joint ``source`` ("" the
+        primary joint), or poly[0] + Σ terms[j]·value(j); returns its name."""
+        name = safe_aux(f"aux-{coordinate}-{tag}")
+        self.aux_bodies.append(name)
+        self.joints.append(MjJoint(name, name, "slide", np.zeros(3), np.array([1.0, 0, 0]), coordinate, None,
+                                   poly=np.asarray(poly, float), source=source, terms=dict(terms or {}), aux=True))
+        return name
+
     def add_chain(self, coordinate: str, tag: str, chain: list[cp.Aux]) -> dict[str, str]:
         """Add the auxiliary joints of ``chain`` (each on its own body) once per (coordinate, tag); returns
         ``{chain name: joint name}``."""

@@ -94,106 +94,183 @@ def _switches(active, lo: float, hi: float) -> tuple[bool, list[tuple[float, int
     return bool(a[0]), out
 
 
-def step_site(name: str, pt: ConditionalPathPoint, neighbour: tuple[str, np.ndarray, np.ndarray],
-              cmap: CoordinateMap, spec: MjcfSpec) -> dict | None:
-    """Build a conditional point as a step site ``name`` (see the module docstring); None when its coordinate
-    never switches inside its range (the always/never candidates then hold it exactly).
+def step_site(name: str, pt: ConditionalPathPoint, neighbour: tuple, cmap: CoordinateMap,
+              spec: MjcfSpec) -> dict | None:
+    """Build a conditional point as a step site ``name`` (module docstring); None when its coordinate never
+    switches inside its range (the always/never candidates then hold it exactly) or the neighbour's frame
+    moves relative to the point with other coordinates too.
 
     Args:
-        neighbour: (MuJoCo body, position in it [m], the neighbour's location in the point's body [m]).
+        neighbour: (MuJoCo body, the neighbour site's position in it [m], point − neighbour in that body's
+            frame [m], or None: a function of the coordinate, then found by MuJoCo's kinematics and fitted).
     """
     coord, active = _activity(pt, cmap)
     if coord not in cmap.primary:
         return None
     lo, hi = cmap.ranges[coord]
     on, sw = _switches(active, lo, hi)
-    d = np.asarray(pt.location, float) - neighbour[2]
-    if not sw or np.linalg.norm(d) < 1e-9:
+    body, pos, d = neighbour
+    if not sw or (d is not None and np.linalg.norm(d) < 1e-9):
+        return None
+    offset = _relative_offset(pt, body, pos, coord, cmap, spec) if d is None else None
+    if d is None and offset is None:
         return None
     _, a, b = cmap.primary[coord]
     vlo, vhi = sorted((a * lo + b, a * hi + b))
-    c0, terms = float(on), []
+    c0, steps, n_it = float(on), [], []
     for q_s, sign in sw:                        # activity = c0 + Σ sign·H(q − q_s), H in the primary value v
         if a < 0:                               # H(q − q_s) = 1 − H(v − v_s)
             c0, sign = c0 + sign, -sign
-        terms.append((a * q_s + b, sign))
-    parent, pos = neighbour[0], neighbour[1] + c0 * d
-    n_it = []
-    for t, (v_s, sign) in enumerate(terms):
-        half = max(v_s - vlo, vhi - v_s)
-        k = cp.smoothstep_iterations(half / abs(a))
-        n_it.append(k)
-        names = cmap.add_chain(coord, f"{name}-{t}", cp.step_chain("", v_s, vlo, vhi, k))
-        body = f"{name}-step{t}"
-        spec.point_bodies.append((body, parent, pos))
-        cmap.joints.append(MjJoint(f"{name}-step{t}", body, "slide", np.zeros(3), d / np.linalg.norm(d), coord,
-                                   None, poly=cp.linear_polycoef(sign * np.linalg.norm(d), 0.0),
-                                   source=names[f"s{k}"]))
-        parent, pos = body, np.zeros(3)
+        v_s = a * q_s + b
+        n_it.append(cp.smoothstep_iterations(max(v_s - vlo, vhi - v_s) / abs(a)))
+        names = cmap.add_chain(coord, f"{name}-{len(steps)}", cp.step_chain("", v_s, vlo, vhi, n_it[-1]))
+        steps.append((names[f"s{n_it[-1]}"], sign))
+    out = {"coordinate": coord, "switches": [q for q, _ in sw], "band": cp.STEP_BAND, "iterations": n_it,
+           "active": active}
+    if d is None:
+        out["parent"], out["offset_fit_error_m"] = _product_site(name, body, pos, offset, coord, c0, steps,
+                                                                 cmap, spec)
+        return out
+    parent, pos = body, pos + c0 * d
+    for t, (s_name, sign) in enumerate(steps):  # one slide body per switch, in series along d
+        spec.point_bodies.append((f"{name}-step{t}", parent, pos))
+        cmap.joints.append(MjJoint(f"{name}-step{t}", f"{name}-step{t}", "slide", np.zeros(3),
+                                   d / np.linalg.norm(d), coord, None,
+                                   poly=cp.linear_polycoef(sign * np.linalg.norm(d), 0.0), source=s_name))
+        parent, pos = f"{name}-step{t}", np.zeros(3)
     spec.sites.append(Site(name, parent, np.zeros(3)))
-    return {"coordinate": coord, "switches": [q for q, _ in sw], "band": cp.STEP_BAND, "iterations": n_it,
-            "parent": parent, "active": active}
+    out["parent"] = parent
+    return out
+
+
+def _relative_offset(pt, body: str, pos: np.ndarray, coord: str, cmap: CoordinateMap,
+                     spec: MjcfSpec) -> tuple[np.ndarray, np.ndarray] | None:
+    """(q grid over the coordinate's range, (n, 3) point − neighbour site in ``body``'s frame [m]) by MuJoCo's
+    kinematics of the model built so far; None when it also depends on other coordinates."""
+    model = mujoco.MjModel.from_xml_string(mjcf_document(cmap.osim, cmap, MjcfSpec(
+        spec.name, list(spec.sites), [], [], list(spec.point_bodies))))
+    geo = MjGeometry(model, cmap, [])
+    ib = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, safe(pt.body))
+    inb = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, safe(body))
+    c = cmap.coordinates.index(coord)
+    qg = np.linspace(*cmap.ranges[coord], 801)
+    out = []
+    for frac in (0.5, 0.3):                      # two backgrounds of the other coordinates
+        q = np.array([lo + frac * (hi - lo) for lo, hi in (cmap.ranges[n] for n in cmap.coordinates)])
+        q = np.repeat(q[None], len(qg), axis=0)
+        q[:, c] = qg
+        g = np.empty((len(qg), 3))
+        for n, row in enumerate(cmap.qpos(q)):
+            geo.set_pose(row)
+            d = geo.data
+            P = d.xpos[ib] + d.xmat[ib].reshape(3, 3) @ np.asarray(pt.location, float)
+            Rn = d.xmat[inb].reshape(3, 3)
+            g[n] = Rn.T @ (P - d.xpos[inb]) - pos
+        out.append(g)
+    return (qg, out[0]) if np.abs(out[0] - out[1]).max() < 1e-9 else None
+
+
+def _product_site(name: str, body: str, pos: np.ndarray, offset: tuple[np.ndarray, np.ndarray], coord: str,
+                  c0: float, steps: list[tuple[str, int]], cmap: CoordinateMap, spec: MjcfSpec) -> tuple[str, float]:
+    """A step body at the neighbour site with a slide per axis whose value is activity(q)·g(q) (g the fitted
+    offset to the point): products from sums and squares, ab = ((a + b)² − (a − b)²)/4, each an exact tie.
+    Returns the body and the offset fit's largest deviation [m]."""
+    qg, g = offset
+    _, a, b = cmap.primary[coord]
+    v = a * qg + b
+    chain, basis = cp.basis_chain(float(v.min()), float(v.max()))
+    bnames = cmap.add_chain(coord, "basis", chain)
+    act = cmap.add_aux(f"{name}-act", coord, cp.linear_polycoef(0.0, c0), terms=dict(steps))
+    step_body = f"{name}-step"
+    spec.point_bodies.append((step_body, body, pos))
+    worst = 0.0
+    for i in range(3):
+        coef, err, _ = cp.composed_fit(chain, basis, v, g[:, i], np.gradient(g[:, i], v))
+        worst = max(worst, err)
+        gi = cmap.add_aux(f"{name}-g{i}", coord, cp.linear_polycoef(0.0, coef[""]),
+                          terms={bnames[k]: c for k, c in coef.items() if k})
+        sq = [cmap.add_aux(f"{name}-sq{i}{t}", coord, np.array([0, 0, 1.0, 0, 0]),
+                           source=cmap.add_aux(f"{name}-sum{i}{t}", coord, np.zeros(5), terms={gi: 1.0, act: sgn}))
+              for t, sgn in (("p", 1.0), ("m", -1.0))]
+        cmap.joints.append(MjJoint(f"{name}-step-{'xyz'[i]}", step_body, "slide", np.zeros(3), np.eye(3)[i], coord,
+                                   None, poly=np.zeros(5), terms={sq[0]: 0.25, sq[1]: -0.25}, error=err))
+    spec.sites.append(Site(name, step_body, np.zeros(3)))
+    return step_body, worst
 
 
 def build_sites(paths: Sequence[PathSpec], cmap: CoordinateMap,
                 spec: MjcfSpec) -> tuple[list[list[str]], list[dict[int, dict]]]:
     """Sites (and moving-point bodies, step bodies and their tied joints) of every path point; returns the
-    site names and, per path, the conditional points built as steps (:func:`step_site`)."""
+    site names and, per path, the conditional points built as steps (:func:`step_site`). Conditional points
+    come last, so that the neighbours they may collapse onto exist."""
     out, steps = [], []
     for path in paths:
-        names: list[str] = []
+        names = [safe(f"{path.name}-{i}-{pt.name}") for i, pt in enumerate(path.points)]
+        anchors: dict[int, tuple[str, np.ndarray]] = {}
         st: dict[int, dict] = {}
         steps.append(st)
-        for i, pt in enumerate(path.points):
-            name = safe(f"{path.name}-{i}-{pt.name}")
+        order = sorted(range(len(path.points)), key=lambda i: (isinstance(path.points[i], ConditionalPathPoint), i))
+        for i in order:
+            pt, name = path.points[i], names[i]
             if isinstance(pt, ConditionalPathPoint) and cmap.couplings == "composed":
-                made = None
-                for nb in _neighbours(path, i, st, cmap):
+                for nb in _neighbours(path, i, st, anchors, cmap):
                     made = step_site(name, pt, nb, cmap, spec)
                     if made is not None:
                         st[i] = made
+                        anchors[i] = (made["parent"], np.zeros(3))
                         break
-                if made is not None:
-                    names.append(name)
+                if i in st:
                     continue
-            if isinstance(pt, MovingPathPoint):
-                body = f"{name}-body"
-                spec.point_bodies.append((body, pt.body))
-                pos = np.zeros(3)
-                for k, (f, c) in enumerate(zip(pt.functions, pt.coordinates)):
-                    if f.is_constant or not c:
-                        pos[k] = float(np.asarray(f.value(np.zeros(1)))[0])
-                        continue
-                    coord, inner = cmap.root(c)
-                    mj = MjJoint(f"{name}-{'xyz'[k]}", body, "slide", np.zeros(3), np.eye(3)[k], coord,
-                                 (lambda ff, gg: (lambda x: ff.value(gg(np.asarray(x, float)))))(f, inner))
-                    cmap.joints.append(mj)
-                    cmap.tie(mj)
-                spec.sites.append(Site(name, body, pos))
-            else:
-                spec.sites.append(Site(name, pt.body, np.asarray(pt.location, float)))
-            names.append(name)
+            anchors[i] = _point_site(name, pt, cmap, spec)
         out.append(names)
     return out, steps
 
 
-def _neighbours(path: PathSpec, i: int, steps: dict[int, dict], cmap: CoordinateMap):
-    """Candidate neighbours of conditional point ``i`` to collapse onto: fixed points of the same body, then
-    earlier step points of the same body whose activity contains the point's (so the point is never on while
-    its neighbour is off); as (MuJoCo body, position in it, location in the point's body)."""
+def _point_site(name: str, pt, cmap: CoordinateMap, spec: MjcfSpec) -> tuple[str, np.ndarray]:
+    """The site of a fixed or moving point (a moving point's body with its tied slides); returns its
+    (MuJoCo body, position in it [m])."""
+    if not isinstance(pt, MovingPathPoint):
+        spec.sites.append(Site(name, pt.body, np.asarray(pt.location, float)))
+        return pt.body, np.asarray(pt.location, float)
+    body = f"{name}-body"
+    spec.point_bodies.append((body, pt.body))
+    pos = np.zeros(3)
+    for k, (f, c) in enumerate(zip(pt.functions, pt.coordinates)):
+        if f.is_constant or not c:
+            pos[k] = float(np.asarray(f.value(np.zeros(1)))[0])
+            continue
+        coord, inner = cmap.root(c)
+        mj = MjJoint(f"{name}-{'xyz'[k]}", body, "slide", np.zeros(3), np.eye(3)[k], coord,
+                     (lambda ff, gg: (lambda x: ff.value(gg(np.asarray(x, float)))))(f, inner))
+        cmap.joints.append(mj)
+        cmap.tie(mj)
+    spec.sites.append(Site(name, body, pos))
+    return body, pos
+
+
+def _neighbours(path: PathSpec, i: int, steps: dict[int, dict], anchors: dict, cmap: CoordinateMap):
+    """Candidate neighbours of conditional point ``i`` to collapse onto, as (MuJoCo body, the neighbour site's
+    position in it [m], point − neighbour in that body's frame [m], or None where it varies with the pose):
+    fixed points of the same body; earlier step points of the same body whose activity contains the point's
+    (so the point is never on while its neighbour is off); then the neighbouring points on other bodies."""
     pt = path.points[i]
-    for j in (i - 1, i + 1):
-        if 0 <= j < len(path.points):
-            nb = path.points[j]
-            if isinstance(nb, PathPoint) and not isinstance(nb, ConditionalPathPoint) and nb.body == pt.body:
-                loc = np.asarray(nb.location, float)
-                yield nb.body, loc, loc
-    if i > 0 and i - 1 in steps and path.points[i - 1].body == pt.body:
+    near = [j for j in (i - 1, i + 1) if 0 <= j < len(path.points) and j in anchors]
+    for j in near:
+        nb = path.points[j]
+        if isinstance(nb, PathPoint) and not isinstance(nb, ConditionalPathPoint) and nb.body == pt.body:
+            loc = np.asarray(nb.location, float)
+            yield nb.body, loc, np.asarray(pt.location, float) - loc
+    if i - 1 in steps and path.points[i - 1].body == pt.body:
         coord, active = _activity(pt, cmap)
         c2, active2 = _activity(path.points[i - 1], cmap)
         q = np.linspace(*cmap.ranges[coord], SWITCH_GRID)
         if coord == c2 and not np.any(active(q) & ~active2(q)):
-            yield steps[i - 1]["parent"], np.zeros(3), np.asarray(path.points[i - 1].location, float)
+            loc = np.asarray(path.points[i - 1].location, float)
+            yield steps[i - 1]["parent"], np.zeros(3), np.asarray(pt.location, float) - loc
+    for j in near:
+        if j not in steps and not isinstance(path.points[j], ConditionalPathPoint) and \
+                getattr(path.points[j], "body", None) != pt.body:
+            yield anchors[j][0], anchors[j][1], None
 
 
 def wrap_geoms(wo: WrapObject, spec: MjcfSpec, made: dict) -> list[tuple[str, list[str]]]:
@@ -378,8 +455,8 @@ def choose(osim, cmap: CoordinateMap, paths: Sequence[PathSpec], reference: Call
         best = int(np.argmin(err))
         t, choice, used, omitted = cs[best]
         out.append(PathChoice(path.name, t, choice, used, omitted, float(err[best]),
-                              {path.points[i].name: {k: v for k, v in st.items() if k in ("coordinate", "switches",
-                                                                                            "band", "iterations")}
+                              {path.points[i].name: {k: v for k, v in st.items() if k in (
+                                  "coordinate", "switches", "band", "iterations", "offset_fit_error_m")}
                                for i, st in steps[m].items()}))
         col += len(cs)
     spec.tendons = [c.tendon for c in out]

@@ -47,7 +47,9 @@ def test_mjcf_loads_with_meshes_masses_and_joints(g2392):
     osim = g2392.model.osim
     assert m.nmesh == len(g2392.meshes) > 10
     ties = sum(bool(j.terms) for j in g2392.cmap.joints)      # composed ties: one fixed tendon each
-    assert m.ntendon - ties == len(osim.muscles) == 92 and ties == 20
+    assert m.ntendon - ties == len(osim.muscles) == 92
+    knee = [j.name for j in g2392.cmap.joints if j.terms and j.body in {b.name for b in osim.bodies}]
+    assert sorted(knee) == [f"knee_{s}_translation{k}" for s in "lr" for k in (1, 2)]
     for b in osim.bodies:
         i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, safe(b.name))
         assert m.body_mass[i] == pytest.approx(b.mass, rel=1e-12)
@@ -120,6 +122,19 @@ def test_conditional_steps_exact_outside_their_band(g2392):
     err = compare(["psoas_r"], L, np.zeros((7, 1, q.shape[1])), Lr[:, None], np.zeros((7, 1, q.shape[1])),
                   outside=~inside[:, None])
     assert err.length_max_out[0] < 1e-9 < err.length_max[0] and err.band_poses[0] == 2
+
+
+def test_conditional_step_onto_a_neighbour_on_another_body(g2392):
+    """Rectus femoris's femur point (on below −83.7° knee angle) collapses onto its neighbour, the moving patella
+    point on the tibia: the step slides by activity × offset, products of exact ties ((a+b)² − (a−b)²)/4."""
+    k = g2392.paths.index("rect_fem_r")
+    step = g2392.choices[k].steps["rect_fem_r-P2"]
+    assert step["switches"] == pytest.approx([-1.45997 + 1e-5], abs=1e-9) and step["offset_fit_error_m"] < 1e-5
+    model = g2392.model
+    q = np.repeat(model.random_q(1, seed=6), 4, axis=0)
+    q[:, model.coordinates.index("knee_angle_r")] = [-2.0, -1.7, -1.2, 0.0]     # on, on, off, off
+    L, _ = MjGeometry(g2392.compile(), g2392.cmap, ["rect_fem_r"]).evaluate(q, moment_arms=False)
+    assert np.abs(L[:, 0] - conv_lengths(g2392, q)[:, k]).max() < 0.05e-3
 
 
 def conv_lengths(conv, q):
