@@ -8,7 +8,9 @@
   a chain of bodies sliding along (point − neighbour), driven by sharp iterated smoothsteps of the coordinate
   (:func:`step_site`): on the point while OpenSim includes it, on the neighbour (a zero-length segment: the
   same length as OpenSim's path without it) while it does not; exact outside a band of
-  :data:`pamkin.sim.couplings.STEP_BAND` around each switch, where OpenSim's length jumps.
+  :data:`pamkin.sim.couplings.STEP_BAND` around each switch, where OpenSim's length jumps. With the neighbour on
+  another body placed by the same coordinate alone (a moving patella point), the site's body hangs from the
+  neighbour's and slides by activity × offset (:func:`_product_site`; the offset fitted, so not exact).
   Otherwise a site that the tendon passes through always or never, or a small wrap geom through it
   (MuJoCo has no conditional points): the choice with the smaller length error on the fit poses.
 * ``WrapCylinder`` and ``WrapSphere`` are wrap geoms (MuJoCo's cylinders are infinite; OpenSim's quadrant
