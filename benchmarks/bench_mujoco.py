@@ -29,7 +29,7 @@ def main(argv: list[str]) -> None:
     seconds = float(argv[1]) if len(argv) > 1 else 2.0
     warnings.simplefilter("ignore")
     robot = design_robot(design)
-    conv = convert_robot(robot)
+    conv = convert_robot(robot, couplings="quartic")
     q0 = robot.model.default_q
     scene = build_scene(conv, robot, q0[None])
     n = int(round(seconds / scene.model.opt.timestep))

@@ -13,10 +13,11 @@ def add_parsers(sub) -> None:
         description="Convert an OpenSim model (default: the built-in Gait2392) or a robot design (both sides, "
                     "PAM routes as tendons) to a MuJoCo model: bodies with the model's masses and inertias, one "
                     "hinge or slide per variable joint axis, spline axes and moving path points as slide/hinge "
-                    "joints tied by degree-4 joint-equality polynomials, muscles or PAM routes as spatial "
+                    "joints tied to their coordinate's joint (--couplings), muscles or PAM routes as spatial "
                     "tendons through sites, wrap cylinders and spheres as wrap geoms (ellipsoids: a sphere or "
-                    "cylinder; conditional path points: always, never or a small wrap geom through the point, "
-                    "whichever fits pamkin's lengths best on 300 fit poses). Writes model.xml, meshes/*.stl and "
+                    "cylinder; conditional path points with a fixed neighbour on their body: a site sliding onto "
+                    "it by a sharp step of the coordinate (composed), else always, never or a small wrap geom "
+                    "through the point, whichever fits pamkin's lengths best on 300 fit poses). Writes model.xml, meshes/*.stl and "
                     "conversion.json; with --measure N also errors.csv, errors.png and errors.json: tendon "
                     "lengths and moment arms against pamkin's on N held-out random poses.")
     src = s.add_mutually_exclusive_group()
@@ -31,6 +32,10 @@ def add_parsers(sub) -> None:
     s.add_argument("--measure", type=int, default=0, metavar="N",
                    help="measure lengths and moment arms against pamkin on N random poses (default 0: no)")
     s.add_argument("--seed", type=int, default=None, help="seed of the measurement poses (default 2026)")
+    s.add_argument("--couplings", choices=("composed", "quartic"), default="composed",
+                   help="composed (default): splines as least-squares sums of auxiliary joints chained by exact "
+                        "degree-4 ties, conditional path points as sharp smoothstep slides; quartic: one degree-4 "
+                        "joint equality per spline, conditional points always/never/a small wrap geom")
     s.set_defaults(func=cmd_mjcf)
 
 
@@ -51,12 +56,12 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
         from pamkin.robot.biped import design_robot  # noqa: PLC0415
 
         robot = design_robot(None if args.design == "robot" else args.design)
-        conv = sc.convert_robot(robot)
+        conv = sc.convert_robot(robot, couplings=args.couplings)
     else:
         import pamkin  # noqa: PLC0415
 
         model = pamkin.load_osim(args.osim) if args.osim else pamkin.gait2392()
-        conv = sc.convert_model(model, geometry=args.geometry)
+        conv = sc.convert_model(model, geometry=args.geometry, couplings=args.couplings)
     if not args.out:
         out = Path.cwd() / f"{re.sub(r'[^A-Za-z0-9_.-]', '_', conv.name)}_mjcf"
         check_output_folder(out, args.force)
@@ -65,7 +70,7 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
     write_conversion(conv, out, args.force, errors, args.measure)
     m = conv.compile()
     print(f"wrote {out}/model.xml: {m.nbody - 1} bodies, {m.njnt} joints ({sum(not j.primary for j in conv.cmap.joints)} "
-          f"tied by polynomials), {m.ntendon} tendons, {len(conv.meshes)} meshes; converted in {conv.seconds:.2f} s")
+          f"tied by polynomials, {len(conv.cmap.aux_bodies)} of them auxiliary), {m.ntendon} tendons, {len(conv.meshes)} meshes; converted in {conv.seconds:.2f} s")
     if errors is not None:
         s = sm.summary(errors, sm.exact_constructs(conv))
         print(f"measured on {args.measure} poses: {s['exact']}/{s['paths']} paths with exact constructs (largest error "
@@ -73,4 +78,8 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
               f"{s['length_within_goal']} within 0.5 mm length, {s['arm_within_goal']} within 1 mm moment arm "
               f"(p99: {s['arm_p99_within_goal']}); worst {s['length_max_m'] * 1e3:.2f} mm length, "
               f"{s['arm_max_m'] * 1e3:.2f} mm moment arm (errors.csv, errors.png)")
+        if s["band_poses"]:
+            print(f"outside the conditional steps' bands ({s['band_poses']} path-poses inside them): "
+                  f"{s['length_within_goal_outside_bands']} within 0.5 mm length, "
+                  f"{s['arm_within_goal_outside_bands']} within 1 mm moment arm")
     return 0

@@ -107,7 +107,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from pamkin.sim.simulate import harness_walk, stand  # noqa: PLC0415
 
     robot = design_robot(None if args.design in (None, "robot") else args.design)
-    conv = convert_robot(robot)
+    conv = convert_robot(robot, couplings="quartic")
     if args.mode == "walk":
         res = harness_walk(robot, conv, tau=tau, kp=args.kp, kd=args.kd, floor_offset=args.floor_offset,
                            lead=args.lead, ground=args.ground, admittance=args.admittance,

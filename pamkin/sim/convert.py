@@ -71,15 +71,18 @@ class Conversion:
 
     def summary(self) -> dict:
         """Joint polynomials (with their largest deviation) and path choices, JSON-ready."""
-        ties = [{"joint": j.name, "coordinate": j.coordinate, "polycoef": j.poly.tolist(), "max_error": j.error}
+        ties = [{"joint": j.name, "coordinate": j.coordinate, "polycoef": j.poly.tolist(), "max_error": j.error,
+                 **({"of_joint": j.source} if j.source else {}),
+                 **({"composed_terms": j.terms, "max_slope_error": j.slope_error} if j.terms else {})}
                 for j in self.cmap.joints if not j.primary]
-        return {"model": self.name, "seconds": self.seconds,
+        return {"model": self.name, "seconds": self.seconds, "couplings": self.cmap.couplings,
                 "inertia_adjusted": inertia_issues(self.model.osim),
                 "primary_joints": {c: {"joint": self.cmap.joints[i].name, "slope": a, "intercept": b}
                                    for c, (i, a, b) in self.cmap.primary.items()},
                 "tied_joints": ties,
                 "paths": [{"path": c.name, "conditional_points": c.conditional, "wrap_geoms": c.wraps,
-                           "wraps_left_out": c.omitted, "fit_max_length_error_m": c.fit_error}
+                           "wraps_left_out": c.omitted, "fit_max_length_error_m": c.fit_error,
+                           **({"conditional_steps": c.steps} if c.steps else {})}
                           for c in self.choices]}
 
 
@@ -88,7 +91,7 @@ def _without_meshes(spec: MjcfSpec) -> MjcfSpec:
 
 
 def convert_model(model: Model, name: str | None = None, geometry: str | os.PathLike | None = None,
-                  fit_poses: int = FIT_POSES) -> Conversion:
+                  fit_poses: int = FIT_POSES, couplings: str = "composed") -> Conversion:
     """Convert a pamkin :class:`~pamkin.human.model.Model` (its muscles as tendons).
 
     Args:
@@ -97,6 +100,9 @@ def convert_model(model: Model, name: str | None = None, geometry: str | os.Path
         geometry: Folder of the ``.vtp`` bone meshes (default: found beside the model file, else pamkin's
             built-in bone meshes where their names match).
         fit_poses: Poses the path constructs are chosen on.
+        couplings: ``"composed"`` (auxiliary joint chains: splines fitted in a rich basis, conditional points
+            as sharp steps) or ``"quartic"`` (one degree-4 joint equality per tie; conditional points as
+            always/never/small wrap geoms); :mod:`pamkin.sim.couplings`.
     """
     t0 = time.perf_counter()
     paths = [PathSpec(m.name, m.points, m.wraps) for m in model.osim.muscles]
@@ -106,12 +112,14 @@ def convert_model(model: Model, name: str | None = None, geometry: str | os.Path
         return res.lengths, res.dense_moment_arms(len(model.coordinates))
 
     return _convert(model, name or model.osim.name, paths, reference, lambda q: model.lengths(q), geometry,
-                    fit_poses, t0)
+                    fit_poses, t0, couplings)
 
 
-def convert_robot(robot: PamRobot, name: str | None = None, fit_poses: int = FIT_POSES) -> Conversion:
+def convert_robot(robot: PamRobot, name: str | None = None, fit_poses: int = FIT_POSES,
+                  couplings: str = "composed") -> Conversion:
     """Convert a PAM robot (both sides): the skeleton's bodies and joints, each PAM route a tendon named
-    after its column (``pam01_r`` ...; forces: :mod:`pamkin.sim.pams`), rollers as cylinder wrap geoms."""
+    after its column (``pam01_r`` ...; forces: :mod:`pamkin.sim.pams`), rollers as cylinder wrap geoms
+    (``couplings``: as :func:`convert_model`)."""
     t0 = time.perf_counter()
     paths = []
     for k, (nm, pts, rs) in enumerate(zip(robot.names, robot.routes, robot.rollers)):
@@ -125,12 +133,12 @@ def convert_robot(robot: PamRobot, name: str | None = None, fit_poses: int = FIT
         return st.lengths, st.moment_arms
 
     return _convert(robot.model, name or robot.design.name, paths, reference, lambda q: reference(q)[0], None,
-                    fit_poses, t0)
+                    fit_poses, t0, couplings)
 
 
 def _convert(model: Model, name: str, paths: list[PathSpec], reference: Reference, lengths, geometry,
-             fit_poses: int, t0: float) -> Conversion:
-    cmap = CoordinateMap(model.osim)
+             fit_poses: int, t0: float, couplings: str) -> Conversion:
+    cmap = CoordinateMap(model.osim, couplings)
     spec = MjcfSpec(name)
     q_fit = model.random_q(fit_poses, seed=FIT_SEED)
     with warnings.catch_warnings():

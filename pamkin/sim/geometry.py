@@ -89,6 +89,9 @@ class GeometryErrors:
         names: Path names.
         length_max, length_p99: |ΔL| largest and 99th percentile per path [m].
         arm_max, arm_p99: largest and 99th percentile |Δr| over the path's coordinates and poses [m].
+        length_max_out, arm_max_out: the largest errors over the poses outside the path's conditional steps'
+            bands (:func:`compare` ``outside``; equal to the maxima without steps) [m].
+        band_poses: poses inside the path's steps' bands.
     """
 
     names: list[str]
@@ -96,6 +99,9 @@ class GeometryErrors:
     length_p99: np.ndarray
     arm_max: np.ndarray
     arm_p99: np.ndarray
+    length_max_out: np.ndarray | None = None
+    arm_max_out: np.ndarray | None = None
+    band_poses: np.ndarray | None = None
 
     def rows(self) -> list[dict]:
         return [{"path": n, "length_max_m": float(a), "length_p99_m": float(b), "arm_max_m": float(c),
@@ -104,16 +110,20 @@ class GeometryErrors:
 
 
 def compare(names: list[str], L: np.ndarray, R: np.ndarray, Lref: np.ndarray, Rref: np.ndarray,
-            coordinates: np.ndarray | None = None) -> GeometryErrors:
+            coordinates: np.ndarray | None = None, outside: np.ndarray | None = None) -> GeometryErrors:
     """Errors of lengths L (N, M) and moment arms R (N, M, C) against the references, moment arms over the
-    coordinate columns ``coordinates`` (default all)."""
+    coordinate columns ``coordinates`` (default all); ``outside`` (N, M): poses counted in the outside-band
+    maxima (default all)."""
     if not len(names):
         empty = np.zeros(0)
-        return GeometryErrors([], empty, empty, empty, empty)
+        return GeometryErrors([], empty, empty, empty, empty, empty, empty, np.zeros(0, int))
     dL = np.abs(L - Lref)
     dR = np.abs(R - Rref)
     if coordinates is not None:
         dR = dR[:, :, coordinates]
+    dRp = dR.max(axis=2)                                       # (N, M) worst coordinate per pose
+    out = np.ones_like(dL, bool) if outside is None else outside
     dR = np.moveaxis(dR, 1, 0).reshape(len(names), -1)
     return GeometryErrors(list(names), dL.max(axis=0), np.percentile(dL, 99, axis=0), dR.max(axis=1),
-                          np.percentile(dR, 99, axis=1))
+                          np.percentile(dR, 99, axis=1), np.where(out, dL, 0).max(axis=0),
+                          np.where(out, dRp, 0).max(axis=0), (~out).sum(axis=0))

@@ -127,6 +127,9 @@ def mujoco_inverse_dynamics(conv: Conversion, times: np.ndarray, q: np.ndarray, 
         P = np.column_stack([col(f"{prefix}p{a}") for a in "xyz"])
         M = np.column_stack([col(f"{tq}{a}") if f"{tq}{a}" in st.columns else np.zeros(len(times)) for a in "xyz"])
         loads.append((mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body), F, P, M))
+    # auxiliary joints (composed chains) and conditional points' step slides carry conversion artefacts of
+    # 1e-5 kg only: their inertial forces (huge slopes inside a step's band) are not the model's
+    model_joint = np.array([not (j.aux or "-step" in j.name) for j in cmap.joints], float)
     qpos = cmap.qpos(q)
     G = cmap.dqpos_dq(q)
     H = _second_derivatives(cmap, q)
@@ -140,16 +143,24 @@ def mujoco_inverse_dynamics(conv: Conversion, times: np.ndarray, q: np.ndarray, 
         for body, F, P, M in loads:
             mujoco.mj_applyFT(model, data, F[n], M[n], P[n], body, ext)
         f = data.qfrc_inverse - ext
-        out[n] = G[n].T @ f[dadr]
+        out[n] = G[n].T @ (f[dadr] * model_joint)
     return out
 
 
-def _second_derivatives(cmap, q: np.ndarray) -> np.ndarray:
-    """(N, n_joints, n_coordinates) ∂²qpos_j/∂q_c² (tied joints: a²·P''(a·q + b); each joint depends on one
-    coordinate)."""
+def _second_derivatives(cmap, q: np.ndarray, h: float = 1e-5) -> np.ndarray:
+    """(N, n_joints, n_coordinates) ∂²qpos_j/∂q_c² (each joint depends on one coordinate): quartic ties
+    a²·P''(a·q + b); composed ties and their auxiliary joints by central differences of the exact slopes
+    (step ``h`` [rad or m]; error O(h²))."""
     out = np.zeros((len(q), len(cmap.joints), len(cmap.coordinates)))
+    composed = [k for k, mj in enumerate(cmap.joints) if mj.terms or mj.source]
+    if composed:
+        for c in range(len(cmap.coordinates)):
+            dq = np.zeros(len(cmap.coordinates))
+            dq[c] = h
+            fd = (cmap.dqpos_dq(q + dq)[:, :, c] - cmap.dqpos_dq(q - dq)[:, :, c]) / (2 * h)
+            out[:, composed, c] = fd[:, composed]
     for k, mj in enumerate(cmap.joints):
-        if mj.primary:
+        if mj.primary or k in composed:
             continue
         c = cmap.coordinates.index(mj.coordinate)
         _, a, b = cmap.primary[mj.coordinate]

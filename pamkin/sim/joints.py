@@ -10,8 +10,13 @@ Per independent coordinate one axis is its *primary* joint: the first axis whose
 ``v = a·q + b`` (a ≠ 0), so ``q = (v − b)/a`` exactly. Every other axis of that coordinate (knee splines,
 coupled coordinates: ``f(s·g(q))``) and every moving path point's coordinate function becomes a *tied* joint:
 ``v = P(v_primary)``, P the least-squares polynomial of degree ≤ 4 (MuJoCo's ``<equality><joint polycoef>``)
-over the coordinate's range. Linear functions are tied exactly; splines approximately (:attr:`TiedJoint.error`,
+over the coordinate's range. Linear functions are tied exactly; splines approximately (:attr:`MjJoint.error`,
 the largest deviation on a 2001-point grid over the range, is reported).
+
+With ``couplings="composed"`` (the default) a spline whose quartic deviates is instead a least-squares
+combination of auxiliary joints chained from the primary joint by exact ties (:mod:`pamkin.sim.couplings`:
+Chebyshev polynomials and iterated smoothsteps), held by a fixed tendon and a tendon equality; each auxiliary
+joint is a slide of its own massless-in-effect body (:data:`pamkin.sim.mjcf.TINY_MASS`) under the world.
 """
 
 from __future__ import annotations
@@ -21,12 +26,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pamkin.errors import UnsupportedFeatureError
+from pamkin.sim import couplings as cp
 from pamkin.opensim.model_file import GROUND, Joint, OsimModel, TransformAxis
 
 #: Degree of the polynomial of a tied joint (MuJoCo's joint equality holds at most degree 4).
 POLY_DEGREE = 4
 #: Points of the grid a tied joint's polynomial is fitted on and checked against.
 FIT_POINTS = 2001
+#: Coupling constructs: ``quartic`` (one joint equality per tie) or ``composed`` (auxiliary joint chains).
+COUPLINGS = ("composed", "quartic")
 
 
 @dataclass
@@ -44,6 +52,10 @@ class MjJoint:
         primary: True for the coordinate's primary joint.
         poly: Tied joints: coefficients a0..a4 of v = Σ a_k·v_primary^k.
         error: Tied joints: largest |P(v_primary) − v| over the coordinate's range [rad or m].
+        source: Name of the joint ``poly`` is in ("" for the coordinate's primary joint).
+        terms: Composed ties: v = poly[0] + Σ terms[j]·value(j) over auxiliary joints j (a fixed tendon).
+        aux: An auxiliary joint (of a composed chain; carries no model body).
+        slope_error: Composed ties: largest |dv/dv_primary| deviation over the range [m/rad, rad/rad or m/m].
     """
 
     name: str
@@ -56,6 +68,10 @@ class MjJoint:
     primary: bool = False
     poly: np.ndarray = field(default_factory=lambda: np.zeros(POLY_DEGREE + 1))
     error: float = 0.0
+    source: str = ""
+    terms: dict[str, float] = field(default_factory=dict)
+    aux: bool = False
+    slope_error: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -78,13 +94,19 @@ class CoordinateMap:
 
     Args:
         osim: The imported model.
+        couplings: ``"composed"`` or ``"quartic"`` (:data:`COUPLINGS`).
 
     Raises:
         UnsupportedFeatureError: An independent coordinate has no axis linear in it (naming joint and
             coordinate), or a coupler chain is cyclic.
     """
 
-    def __init__(self, osim: OsimModel) -> None:
+    def __init__(self, osim: OsimModel, couplings: str = "composed") -> None:
+        if couplings not in COUPLINGS:
+            raise ValueError(f"couplings must be one of {COUPLINGS}, got {couplings!r}")
+        self.couplings = couplings
+        #: Auxiliary bodies (children of the world, one slide joint each).
+        self.aux_bodies: list[str] = []
         self.osim = osim
         self.coordinates = [c.name for c in osim.coordinates]
         self.ranges = {c.name: c.range for c in osim.coordinates}
@@ -148,12 +170,13 @@ class CoordinateMap:
             if a is not None:
                 mj.primary = True
                 self.primary[mj.coordinate] = (i, a, b)
-        for mj in self.joints:
+        for mj in list(self.joints):
             if not mj.primary:
                 self.tie(mj)
 
     def tie(self, mj: MjJoint) -> None:
-        """Fit ``mj``'s polynomial in its coordinate's primary joint (raises when there is none)."""
+        """Fit ``mj``'s polynomial in its coordinate's primary joint (raises when there is none); with composed
+        couplings, refit it as a sum of auxiliary joints where that deviates less (:meth:`_tie_composed`)."""
         if mj.coordinate not in self.primary:
             raise UnsupportedFeatureError(
                 self.osim.path, f"coordinate {mj.coordinate!r} moves no TransformAxis linearly, so no MuJoCo "
@@ -167,6 +190,44 @@ class CoordinateMap:
         c[np.abs(c) < 1e-15] = 0.0
         mj.poly = c
         mj.error = float(np.max(np.abs(np.polynomial.polynomial.polyval(x, c) - y)))
+        if self.couplings == "composed" and mj.error > 1e-12:
+            self._tie_composed(mj, x, y, np.gradient(y, x))
+
+    def _tie_composed(self, mj: MjJoint, v: np.ndarray, y: np.ndarray, dy: np.ndarray) -> None:
+        """Refit ``mj`` (values y, slopes dy at primary values v) in its coordinate's composed basis, kept when
+        its largest deviation is below the quartic's."""
+        chain, basis = cp.basis_chain(float(v.min()), float(v.max()))
+        coef, err, derr = cp.composed_fit(chain, basis, v, y, dy)
+        if err >= mj.error:
+            return
+        names = self.add_chain(mj.coordinate, "basis", chain)
+        mj.terms = {names[b]: c for b, c in coef.items() if b}
+        mj.poly = cp.linear_polycoef(0.0, coef[""])
+        mj.error, mj.slope_error = err, derr
+
+    def add_aux(self, tag: str, coordinate: str, poly: np.ndarray, source: str = "",
+                terms: dict[str, float] | None = None) -> str:
+        """Add one auxiliary slide joint (on its own body) of ``coordinate``: ``poly`` of joint ``source`` ("" the
+        primary joint), or poly[0] + Σ terms[j]·value(j); returns its name."""
+        name = safe_aux(f"aux-{coordinate}-{tag}")
+        self.aux_bodies.append(name)
+        self.joints.append(MjJoint(name, name, "slide", np.zeros(3), np.array([1.0, 0, 0]), coordinate, None,
+                                   poly=np.asarray(poly, float), source=source, terms=dict(terms or {}), aux=True))
+        return name
+
+    def add_chain(self, coordinate: str, tag: str, chain: list[cp.Aux]) -> dict[str, str]:
+        """Add the auxiliary joints of ``chain`` (each on its own body) once per (coordinate, tag); returns
+        ``{chain name: joint name}``."""
+        names = {a[0]: safe_aux(f"aux-{coordinate}-{tag}-{a[0]}") for a in chain}
+        have = {j.name for j in self.joints}
+        for name, src, poly in chain:
+            if names[name] in have:
+                continue
+            self.aux_bodies.append(names[name])
+            self.joints.append(MjJoint(names[name], names[name], "slide", np.zeros(3), np.array([1.0, 0, 0]),
+                                       coordinate, None, poly=np.asarray(poly, float), source=names.get(src, ""),
+                                       aux=True))
+        return names
 
     # ------------------------------------------------------------------ maps
     def joint_index(self, name: str) -> int:
@@ -174,32 +235,59 @@ class CoordinateMap:
 
     def qpos(self, q: np.ndarray) -> np.ndarray:
         """(N, n_joints) MuJoCo joint values of configurations q (N, n_coordinates), in :attr:`joints` order,
-        tied joints at their polynomial (what MuJoCo's equality holds)."""
-        q = np.atleast_2d(q)
-        out = np.empty((len(q), len(self.joints)))
-        for k, mj in enumerate(self.joints):
-            qc = q[:, self.coordinates.index(mj.coordinate)]
-            _, a, b = self.primary[mj.coordinate]
-            x = a * qc + b
-            out[:, k] = x if mj.primary else np.polynomial.polynomial.polyval(x, mj.poly)
-        return out
+        tied joints at their polynomial or composition (what MuJoCo's equalities hold)."""
+        return self._values(q)[0]
 
     def dqpos_dq(self, q: np.ndarray) -> np.ndarray:
         """(N, n_joints, n_coordinates) derivatives of :meth:`qpos` (0 about dependent coordinates)."""
-        q = np.atleast_2d(q)
-        out = np.zeros((len(q), len(self.joints), len(self.coordinates)))
+        v, d = self._values(q)
+        out = np.zeros((len(v), len(self.joints), len(self.coordinates)))
         for k, mj in enumerate(self.joints):
-            c = self.coordinates.index(mj.coordinate)
-            _, a, b = self.primary[mj.coordinate]
-            x = a * q[:, c] + b
-            d = np.polynomial.polynomial.polyder(mj.poly)
-            out[:, k, c] = a if mj.primary else a * np.polynomial.polynomial.polyval(x, d)
+            out[:, k, self.coordinates.index(mj.coordinate)] = d[:, k]
         return out
+
+    def _values(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Joint values (N, n_joints) and their derivatives about their coordinate (N, n_joints)."""
+        q = np.atleast_2d(q)
+        index = {j.name: k for k, j in enumerate(self.joints)}
+        val = np.full((len(q), len(self.joints)), np.nan)
+        der = np.zeros_like(val)
+        done = np.zeros(len(self.joints), bool)
+
+        def ev(k: int) -> None:
+            if done[k]:
+                return
+            mj = self.joints[k]
+            i, a, b = self.primary[mj.coordinate]
+            if mj.primary:
+                val[:, k], der[:, k] = a * q[:, self.coordinates.index(mj.coordinate)] + b, a
+            elif mj.terms:
+                val[:, k], der[:, k] = mj.poly[0], 0.0
+                for name, c in mj.terms.items():
+                    ev(index[name])
+                    val[:, k] += c * val[:, index[name]]
+                    der[:, k] += c * der[:, index[name]]
+            else:
+                s = index[mj.source] if mj.source else i
+                ev(s)
+                P = np.polynomial.polynomial
+                val[:, k] = P.polyval(val[:, s], mj.poly)
+                der[:, k] = P.polyval(val[:, s], P.polyder(mj.poly)) * der[:, s]
+            done[k] = True
+
+        for k in range(len(self.joints)):
+            ev(k)
+        return val, der
 
     def coordinates_of(self, qpos: np.ndarray) -> dict[str, np.ndarray]:
         """Independent coordinates from MuJoCo joint values (N, n_joints): ``{name: (N,)}``."""
         qpos = np.atleast_2d(qpos)
         return {c: (qpos[:, i] - b) / a for c, (i, a, b) in self.primary.items()}
+
+
+def safe_aux(name: str) -> str:
+    """An auxiliary joint/body name MuJoCo accepts (letters, digits, ``_ - .``)."""
+    return "".join(ch if ch.isalnum() or ch in "_-." else "_" for ch in name)
 
 
 def _compose(k, fn):

@@ -62,8 +62,8 @@ class MjcfSpec:
     sites: list[Site] = field(default_factory=list)
     geoms: list[WrapGeom] = field(default_factory=list)
     tendons: list[Tendon] = field(default_factory=list)
-    #: Extra bodies (moving path points): (name, parent body).
-    point_bodies: list[tuple[str, str]] = field(default_factory=list)
+    #: Extra bodies (moving path points, conditional points' steps): (name, parent body[, position in it [m]]).
+    point_bodies: list[tuple] = field(default_factory=list)
     #: ``{body: [(mesh asset name, file, R, p, scale)]}`` visual meshes.
     meshes: dict[str, list[tuple]] = field(default_factory=dict)
     #: Extra XML sections appended under the root (actuators, contact, ...).
@@ -135,10 +135,13 @@ def mjcf_document(osim: OsimModel, cmap: CoordinateMap, spec: MjcfSpec) -> str:
     for b in osim.bodies:       # bodies without a joint (none in OpenSim models: every body has one)
         if b.name not in elements:
             raise ValueError(f"body {b.name!r} has no joint")
-    for name, parent in spec.point_bodies:
-        el = ET.SubElement(elements[parent], "body", name=safe(name))
+    for name, parent, *pos in spec.point_bodies:
+        el = ET.SubElement(elements[parent], "body", name=safe(name), **({"pos": _nums(pos[0])} if pos else {}))
         _inertial(el, None)
         elements[name] = el
+    for name in cmap.aux_bodies:
+        _inertial(ET.SubElement(world, "body", name=safe(name)), None)
+        elements[name] = world[-1]
     for mj in cmap.joints:
         ET.SubElement(elements[mj.body], "joint", name=safe(mj.name), type=mj.kind, pos=_nums(mj.pos),
                       axis=_nums(mj.axis), **_limits(cmap, mj, spec))
@@ -163,11 +166,21 @@ def mjcf_document(osim: OsimModel, cmap: CoordinateMap, spec: MjcfSpec) -> str:
             ET.SubElement(eq, "weld", name="harness", body1="harness", body2=safe(spec.harness),
                           relpose="0 0 0 1 0 0 0", solref="0.02 1")
         for mj in ties:
-            prim = cmap.joints[cmap.primary[mj.coordinate][0]]
-            ET.SubElement(eq, "joint", name=safe(f"tie_{mj.name}"), joint1=safe(mj.name), joint2=safe(prim.name),
+            if mj.terms:                # v − Σ c·aux held at poly[0] (tendon_length0 is 0: qpos0 is 0)
+                ET.SubElement(eq, "tendon", name=safe(f"tie_{mj.name}"), tendon1=safe(f"tie_{mj.name}"),
+                              polycoef=_nums(mj.poly), solref="0.002 1")
+                continue
+            src = mj.source or cmap.joints[cmap.primary[mj.coordinate][0]].name
+            ET.SubElement(eq, "joint", name=safe(f"tie_{mj.name}"), joint1=safe(mj.name), joint2=safe(src),
                           polycoef=_nums(mj.poly), solref="0.002 1")
-    if spec.tendons:
+    composed = [mj for mj in ties if mj.terms]
+    if spec.tendons or composed:
         ten = ET.SubElement(root, "tendon")
+        for mj in composed:
+            el = ET.SubElement(ten, "fixed", name=safe(f"tie_{mj.name}"))
+            ET.SubElement(el, "joint", joint=safe(mj.name), coef="1")
+            for name, c in mj.terms.items():
+                ET.SubElement(el, "joint", joint=safe(name), coef=_num(-c))
         for t in spec.tendons:
             el = ET.SubElement(ten, "spatial", name=safe(t.name), width="0.002")
             for item in t.path:

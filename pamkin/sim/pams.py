@@ -55,6 +55,9 @@ class PamDrive:
             raise ValueError(f"tau must be > 0 s, got {tau}")
         if not 0 < p_max <= P_MAX:
             raise ValueError(f"p_max must be in (0, {P_MAX:g}] Pa, got {p_max}")
+        if any(j.terms or j.source for j in cmap.joints):
+            raise ValueError("PAM forces need a conversion with couplings='quartic' (every tie a polynomial of its "
+                             "coordinate's joint); composed couplings are for geometry")
         self.robot, self.model, self.tau, self.p_max = robot, model, float(tau), float(p_max)
         self.tendons = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, safe(n)) for n in robot.names])
         if (self.tendons < 0).any():

@@ -4,8 +4,15 @@
 * A ``MovingPathPoint`` is a site of its own body, a child of the point's body with one slide joint per
   moving component (along the body's axes) tied to the coordinate's primary joint by a degree-4 polynomial
   (:class:`pamkin.sim.joints.CoordinateMap`): approximate where the function is a spline.
-* A ``ConditionalPathPoint`` is a site that the tendon passes through always or never (MuJoCo has no
-  conditional points): the choice with the smaller length error on the fit poses.
+* A ``ConditionalPathPoint`` with a neighbouring point fixed in the same body (composed couplings): a site on
+  a chain of bodies sliding along (point − neighbour), driven by sharp iterated smoothsteps of the coordinate
+  (:func:`step_site`): on the point while OpenSim includes it, on the neighbour (a zero-length segment: the
+  same length as OpenSim's path without it) while it does not; exact outside a band of
+  :data:`pamkin.sim.couplings.STEP_BAND` around each switch, where OpenSim's length jumps. With the neighbour on
+  another body placed by the same coordinate alone (a moving patella point), the site's body hangs from the
+  neighbour's and slides by activity × offset (:func:`_product_site`; the offset fitted, so not exact).
+  Otherwise a site that the tendon passes through always or never, or a small wrap geom through it
+  (MuJoCo has no conditional points): the choice with the smaller length error on the fit poses.
 * ``WrapCylinder`` and ``WrapSphere`` are wrap geoms (MuJoCo's cylinders are infinite; OpenSim's quadrant
   becomes a side site); ``WrapEllipsoid`` is a sphere or a cylinder (candidates from its radii); a
   ``WrapTorus`` has no MuJoCo counterpart and is left out. MuJoCo wraps a geom placed between two sites, so
@@ -20,12 +27,13 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
 
-from pamkin.opensim.model_file import ConditionalPathPoint, MovingPathPoint
+from pamkin.opensim.model_file import ConditionalPathPoint, MovingPathPoint, PathPoint
+from pamkin.sim import couplings as cp
 from pamkin.opensim.wrapping import PathWrap, WrapObject
 from pamkin.sim.geometry import MjGeometry
 from pamkin.sim.joints import CoordinateMap, MjJoint
@@ -57,34 +65,214 @@ class PathChoice:
     wraps: list[str]
     omitted: list[str]
     fit_error: float
+    #: Conditional points built as steps: {point: {"coordinate": independent coordinate, "switches":
+    #: [its values], "band": full width [rad or m],
+    #: "iterations": smoothstep iterations per switch}}.
+    steps: dict[str, dict] = field(default_factory=dict)
+
+#: Grid points on which a conditional point's activity over its coordinate's range is located.
+SWITCH_GRID = 4001
 
 
-def build_sites(paths: Sequence[PathSpec], cmap: CoordinateMap, spec: MjcfSpec) -> list[list[str]]:
-    """Sites (and moving-point bodies and their tied joints) of every path point; returns the site names."""
+def _activity(pt: ConditionalPathPoint, cmap: CoordinateMap) -> tuple[str, object]:
+    """(independent coordinate, vectorised q -> bool: OpenSim includes the point)."""
+    coord, fn = cmap.root(pt.coordinate)
+    lo, hi = pt.range
+    return coord, lambda q: (np.asarray(fn(np.asarray(q, float))) >= lo - 1e-5) & (
+        np.asarray(fn(np.asarray(q, float))) <= hi + 1e-5)
+
+
+def _switches(active, lo: float, hi: float) -> tuple[bool, list[tuple[float, int]]]:
+    """Activity at ``lo`` and the switches inside (lo, hi): (coordinate value, +1 on / −1 off as q rises)."""
+    q = np.linspace(lo, hi, SWITCH_GRID)
+    a = active(q)
     out = []
-    for path in paths:
-        names = []
-        for i, pt in enumerate(path.points):
-            name = safe(f"{path.name}-{i}-{pt.name}")
-            if isinstance(pt, MovingPathPoint):
-                body = f"{name}-body"
-                spec.point_bodies.append((body, pt.body))
-                pos = np.zeros(3)
-                for k, (f, c) in enumerate(zip(pt.functions, pt.coordinates)):
-                    if f.is_constant or not c:
-                        pos[k] = float(np.asarray(f.value(np.zeros(1)))[0])
-                        continue
-                    coord, inner = cmap.root(c)
-                    mj = MjJoint(f"{name}-{'xyz'[k]}", body, "slide", np.zeros(3), np.eye(3)[k], coord,
-                                 (lambda ff, gg: (lambda x: ff.value(gg(np.asarray(x, float)))))(f, inner))
-                    cmap.joints.append(mj)
-                    cmap.tie(mj)
-                spec.sites.append(Site(name, body, pos))
-            else:
-                spec.sites.append(Site(name, pt.body, np.asarray(pt.location, float)))
-            names.append(name)
-        out.append(names)
+    for k in np.nonzero(a[1:] != a[:-1])[0]:
+        x0, x1 = q[k], q[k + 1]
+        for _ in range(60):                     # bisection to round-off
+            xm = 0.5 * (x0 + x1)
+            x0, x1 = (xm, x1) if active(np.array([xm]))[0] == a[k] else (x0, xm)
+        out.append((0.5 * (x0 + x1), 1 if a[k + 1] else -1))
+    return bool(a[0]), out
+
+
+def step_site(name: str, pt: ConditionalPathPoint, neighbour: tuple, cmap: CoordinateMap,
+              spec: MjcfSpec) -> dict | None:
+    """Build a conditional point as a step site ``name`` (module docstring); None when its coordinate never
+    switches inside its range (the always/never candidates then hold it exactly) or the neighbour's frame
+    moves relative to the point with other coordinates too.
+
+    Args:
+        neighbour: (MuJoCo body, the neighbour site's position in it [m], point − neighbour in that body's
+            frame [m], or None: a function of the coordinate, then found by MuJoCo's kinematics and fitted).
+    """
+    coord, active = _activity(pt, cmap)
+    if coord not in cmap.primary:
+        return None
+    lo, hi = cmap.ranges[coord]
+    on, sw = _switches(active, lo, hi)
+    body, pos, d = neighbour
+    if not sw or (d is not None and np.linalg.norm(d) < 1e-9):
+        return None
+    offset = _relative_offset(pt, body, pos, coord, cmap, spec) if d is None else None
+    if d is None and offset is None:
+        return None
+    _, a, b = cmap.primary[coord]
+    vlo, vhi = sorted((a * lo + b, a * hi + b))
+    c0, steps, n_it = float(on), [], []
+    for q_s, sign in sw:                        # activity = c0 + Σ sign·H(q − q_s), H in the primary value v
+        if a < 0:                               # H(q − q_s) = 1 − H(v − v_s)
+            c0, sign = c0 + sign, -sign
+        v_s = a * q_s + b
+        n_it.append(cp.smoothstep_iterations(max(v_s - vlo, vhi - v_s) / abs(a)))
+        names = cmap.add_chain(coord, f"{name}-{len(steps)}", cp.step_chain("", v_s, vlo, vhi, n_it[-1]))
+        steps.append((names[f"s{n_it[-1]}"], sign))
+    out = {"coordinate": coord, "switches": [q for q, _ in sw], "band": cp.STEP_BAND, "iterations": n_it,
+           "active": active}
+    if d is None:
+        out["parent"], out["offset_fit_error_m"] = _product_site(name, body, pos, offset, coord, c0, steps,
+                                                                 cmap, spec)
+        return out
+    parent, pos = body, pos + c0 * d
+    for t, (s_name, sign) in enumerate(steps):  # one slide body per switch, in series along d
+        spec.point_bodies.append((f"{name}-step{t}", parent, pos))
+        cmap.joints.append(MjJoint(f"{name}-step{t}", f"{name}-step{t}", "slide", np.zeros(3),
+                                   d / np.linalg.norm(d), coord, None,
+                                   poly=cp.linear_polycoef(sign * np.linalg.norm(d), 0.0), source=s_name))
+        parent, pos = f"{name}-step{t}", np.zeros(3)
+    spec.sites.append(Site(name, parent, np.zeros(3)))
+    out["parent"] = parent
     return out
+
+
+def _relative_offset(pt, body: str, pos: np.ndarray, coord: str, cmap: CoordinateMap,
+                     spec: MjcfSpec) -> tuple[np.ndarray, np.ndarray] | None:
+    """(q grid over the coordinate's range, (n, 3) point − neighbour site in ``body``'s frame [m]) by MuJoCo's
+    kinematics of the model built so far; None when it also depends on other coordinates."""
+    model = mujoco.MjModel.from_xml_string(mjcf_document(cmap.osim, cmap, MjcfSpec(
+        spec.name, list(spec.sites), [], [], list(spec.point_bodies))))
+    geo = MjGeometry(model, cmap, [])
+    ib = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, safe(pt.body))
+    inb = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, safe(body))
+    c = cmap.coordinates.index(coord)
+    qg = np.linspace(*cmap.ranges[coord], 801)
+    out = []
+    for frac in (0.5, 0.3):                      # two backgrounds of the other coordinates
+        q = np.array([lo + frac * (hi - lo) for lo, hi in (cmap.ranges[n] for n in cmap.coordinates)])
+        q = np.repeat(q[None], len(qg), axis=0)
+        q[:, c] = qg
+        g = np.empty((len(qg), 3))
+        for n, row in enumerate(cmap.qpos(q)):
+            geo.set_pose(row)
+            d = geo.data
+            P = d.xpos[ib] + d.xmat[ib].reshape(3, 3) @ np.asarray(pt.location, float)
+            Rn = d.xmat[inb].reshape(3, 3)
+            g[n] = Rn.T @ (P - d.xpos[inb]) - pos
+        out.append(g)
+    return (qg, out[0]) if np.abs(out[0] - out[1]).max() < 1e-9 else None
+
+
+def _product_site(name: str, body: str, pos: np.ndarray, offset: tuple[np.ndarray, np.ndarray], coord: str,
+                  c0: float, steps: list[tuple[str, int]], cmap: CoordinateMap, spec: MjcfSpec) -> tuple[str, float]:
+    """A step body at the neighbour site with a slide per axis whose value is activity(q)·g(q) (g the fitted
+    offset to the point): products from sums and squares, ab = ((a + b)² − (a − b)²)/4, each an exact tie.
+    Returns the body and the offset fit's largest deviation [m]."""
+    qg, g = offset
+    _, a, b = cmap.primary[coord]
+    v = a * qg + b
+    chain, basis = cp.basis_chain(float(v.min()), float(v.max()))
+    bnames = cmap.add_chain(coord, "basis", chain)
+    act = cmap.add_aux(f"{name}-act", coord, cp.linear_polycoef(0.0, c0), terms=dict(steps))
+    step_body = f"{name}-step"
+    spec.point_bodies.append((step_body, body, pos))
+    worst = 0.0
+    for i in range(3):
+        coef, err, _ = cp.composed_fit(chain, basis, v, g[:, i], np.gradient(g[:, i], v))
+        worst = max(worst, err)
+        gi = cmap.add_aux(f"{name}-g{i}", coord, cp.linear_polycoef(0.0, coef[""]),
+                          terms={bnames[k]: c for k, c in coef.items() if k})
+        sq = [cmap.add_aux(f"{name}-sq{i}{t}", coord, np.array([0, 0, 1.0, 0, 0]),
+                           source=cmap.add_aux(f"{name}-sum{i}{t}", coord, np.zeros(5), terms={gi: 1.0, act: sgn}))
+              for t, sgn in (("p", 1.0), ("m", -1.0))]
+        cmap.joints.append(MjJoint(f"{name}-step-{'xyz'[i]}", step_body, "slide", np.zeros(3), np.eye(3)[i], coord,
+                                   None, poly=np.zeros(5), terms={sq[0]: 0.25, sq[1]: -0.25}, error=err))
+    spec.sites.append(Site(name, step_body, np.zeros(3)))
+    return step_body, worst
+
+
+def build_sites(paths: Sequence[PathSpec], cmap: CoordinateMap,
+                spec: MjcfSpec) -> tuple[list[list[str]], list[dict[int, dict]]]:
+    """Sites (and moving-point bodies, step bodies and their tied joints) of every path point; returns the
+    site names and, per path, the conditional points built as steps (:func:`step_site`). Conditional points
+    come last, so that the neighbours they may collapse onto exist."""
+    out, steps = [], []
+    for path in paths:
+        names = [safe(f"{path.name}-{i}-{pt.name}") for i, pt in enumerate(path.points)]
+        anchors: dict[int, tuple[str, np.ndarray]] = {}
+        st: dict[int, dict] = {}
+        steps.append(st)
+        order = sorted(range(len(path.points)), key=lambda i: (isinstance(path.points[i], ConditionalPathPoint), i))
+        for i in order:
+            pt, name = path.points[i], names[i]
+            if isinstance(pt, ConditionalPathPoint) and cmap.couplings == "composed":
+                for nb in _neighbours(path, i, st, anchors, cmap):
+                    made = step_site(name, pt, nb, cmap, spec)
+                    if made is not None:
+                        st[i] = made
+                        anchors[i] = (made["parent"], np.zeros(3))
+                        break
+                if i in st:
+                    continue
+            anchors[i] = _point_site(name, pt, cmap, spec)
+        out.append(names)
+    return out, steps
+
+
+def _point_site(name: str, pt, cmap: CoordinateMap, spec: MjcfSpec) -> tuple[str, np.ndarray]:
+    """The site of a fixed or moving point (a moving point's body with its tied slides); returns its
+    (MuJoCo body, position in it [m])."""
+    if not isinstance(pt, MovingPathPoint):
+        spec.sites.append(Site(name, pt.body, np.asarray(pt.location, float)))
+        return pt.body, np.asarray(pt.location, float)
+    body = f"{name}-body"
+    spec.point_bodies.append((body, pt.body))
+    pos = np.zeros(3)
+    for k, (f, c) in enumerate(zip(pt.functions, pt.coordinates)):
+        if f.is_constant or not c:
+            pos[k] = float(np.asarray(f.value(np.zeros(1)))[0])
+            continue
+        coord, inner = cmap.root(c)
+        mj = MjJoint(f"{name}-{'xyz'[k]}", body, "slide", np.zeros(3), np.eye(3)[k], coord,
+                     (lambda ff, gg: (lambda x: ff.value(gg(np.asarray(x, float)))))(f, inner))
+        cmap.joints.append(mj)
+        cmap.tie(mj)
+    spec.sites.append(Site(name, body, pos))
+    return body, pos
+
+
+def _neighbours(path: PathSpec, i: int, steps: dict[int, dict], anchors: dict, cmap: CoordinateMap):
+    """Candidate neighbours of conditional point ``i`` to collapse onto, as (MuJoCo body, the neighbour site's
+    position in it [m], point − neighbour in that body's frame [m], or None where it varies with the pose):
+    fixed points of the same body; earlier step points of the same body whose activity contains the point's
+    (so the point is never on while its neighbour is off); then the neighbouring points on other bodies."""
+    pt = path.points[i]
+    near = [j for j in (i - 1, i + 1) if 0 <= j < len(path.points) and j in anchors]
+    for j in near:
+        nb = path.points[j]
+        if isinstance(nb, PathPoint) and not isinstance(nb, ConditionalPathPoint) and nb.body == pt.body:
+            loc = np.asarray(nb.location, float)
+            yield nb.body, loc, np.asarray(pt.location, float) - loc
+    if i - 1 in steps and path.points[i - 1].body == pt.body:
+        coord, active = _activity(pt, cmap)
+        c2, active2 = _activity(path.points[i - 1], cmap)
+        q = np.linspace(*cmap.ranges[coord], SWITCH_GRID)
+        if coord == c2 and not np.any(active(q) & ~active2(q)):
+            loc = np.asarray(path.points[i - 1].location, float)
+            yield steps[i - 1]["parent"], np.zeros(3), np.asarray(pt.location, float) - loc
+    for j in near:
+        if j not in steps and not isinstance(path.points[j], ConditionalPathPoint) and \
+                getattr(path.points[j], "body", None) != pt.body:
+            yield anchors[j][0], anchors[j][1], None
 
 
 def wrap_geoms(wo: WrapObject, spec: MjcfSpec, made: dict) -> list[tuple[str, list[str]]]:
@@ -135,12 +323,15 @@ def _z_to(k: int) -> np.ndarray:
 
 
 def candidates(path: PathSpec, sites: list[str], spec: MjcfSpec, made: dict,
-               standins: dict[int, list[tuple[str, str]]] | None = None) -> list[tuple[Tendon, dict, list, list]]:
+               standins: dict[int, list[tuple[str, str]]] | None = None,
+               steps: dict[int, dict] | None = None) -> list[tuple[Tendon, dict, list, list]]:
     """Every candidate tendon of ``path``: (tendon, conditional choices, wrap geoms used, wraps left out).
 
-    ``standins``: per conditional point index, wrap geoms (geom, side site) that may stand for it."""
+    ``standins``: per conditional point index, wrap geoms (geom, side site) that may stand for it;
+    ``steps``: conditional points built as steps (always in the tendon)."""
     standins = standins or {}
-    cond = [i for i, pt in enumerate(path.points) if isinstance(pt, ConditionalPathPoint)]
+    steps = steps or {}
+    cond = [i for i, pt in enumerate(path.points) if isinstance(pt, ConditionalPathPoint) and i not in steps]
     wrap_opts = []
     omitted = []
     for w in path.wraps:
@@ -179,6 +370,7 @@ def candidates(path: PathSpec, sites: list[str], spec: MjcfSpec, made: dict,
                         items.append(("geom", c[1], c[2]))
             choice = {path.points[i].name: (inc[k] if isinstance(inc[k], bool) else f"wrap {inc[k][0]}")
                       for k, i in enumerate(cond)}
+            choice.update({path.points[i].name: "step" for i in sorted(steps)})
             out.append((Tendon(path.name, items), choice, [c[1] for c in used], omitted))
     return out
 
@@ -188,7 +380,8 @@ STANDIN_RADII = (0.002, 0.008, 0.02)
 
 
 def conditional_standins(osim, cmap: CoordinateMap, paths: Sequence[PathSpec], sites: list[list[str]],
-                         q_fit: np.ndarray, spec: MjcfSpec) -> list[dict[int, list[tuple[str, str]]]]:
+                         q_fit: np.ndarray, spec: MjcfSpec,
+                         steps: list[dict[int, dict]] | None = None) -> list[dict[int, list[tuple[str, str]]]]:
     """Wrap geoms that may stand for each conditional path point: a sphere and a cylinder through the point,
     on the side of the straight line between its neighbours where the point bends the path (the mean
     direction, in the point's body, over the fit poses where OpenSim includes it), with a side site beyond
@@ -196,7 +389,8 @@ def conditional_standins(osim, cmap: CoordinateMap, paths: Sequence[PathSpec], s
     out geometrically (OpenSim drops it by its coordinate's range)."""
     out: list[dict[int, list[tuple[str, str]]]] = [{} for _ in paths]
     todo = [(m, i) for m, p in enumerate(paths) for i, pt in enumerate(p.points)
-            if isinstance(pt, ConditionalPathPoint) and 0 < i < len(p.points) - 1]
+            if isinstance(pt, ConditionalPathPoint) and 0 < i < len(p.points) - 1
+            and not (steps and i in steps[m])]
     if not todo:
         return out
     model = mujoco.MjModel.from_xml_string(mjcf_document(osim, cmap, MjcfSpec(spec.name, spec.sites, [], [],
@@ -245,10 +439,10 @@ def choose(osim, cmap: CoordinateMap, paths: Sequence[PathSpec], reference: Call
            q_fit: np.ndarray, spec: MjcfSpec) -> list[PathChoice]:
     """Build every path's candidates, evaluate them at ``q_fit`` in MuJoCo against ``reference(q_fit)``
     (N, n_paths) lengths [m] and keep the best per path (``spec.tendons`` set to the chosen ones)."""
-    sites = build_sites(paths, cmap, spec)
-    standins = conditional_standins(osim, cmap, paths, sites, q_fit, spec)
+    sites, steps = build_sites(paths, cmap, spec)
+    standins = conditional_standins(osim, cmap, paths, sites, q_fit, spec, steps)
     made: dict = {}
-    cands = [candidates(p, s, spec, made, st) for p, s, st in zip(paths, sites, standins)]
+    cands = [candidates(p, s, spec, made, st, sp) for p, s, st, sp in zip(paths, sites, standins, steps)]
     fit_spec = MjcfSpec(spec.name, spec.sites, spec.geoms,
                         [Tendon(f"{t.name}~{k}", t.path) for cs in cands for k, (t, _, _, _) in enumerate(cs)],
                         spec.point_bodies)
@@ -262,7 +456,10 @@ def choose(osim, cmap: CoordinateMap, paths: Sequence[PathSpec], reference: Call
         err = np.abs(L[:, col:col + len(cs)] - Lref[:, m:m + 1]).max(axis=0)
         best = int(np.argmin(err))
         t, choice, used, omitted = cs[best]
-        out.append(PathChoice(path.name, t, choice, used, omitted, float(err[best])))
+        out.append(PathChoice(path.name, t, choice, used, omitted, float(err[best]),
+                              {path.points[i].name: {k: v for k, v in st.items() if k in (
+                                  "coordinate", "switches", "band", "iterations", "offset_fit_error_m")}
+                               for i, st in steps[m].items()}))
         col += len(cs)
     spec.tendons = [c.tendon for c in out]
     _prune(spec)

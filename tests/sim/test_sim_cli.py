@@ -18,9 +18,12 @@ def test_mjcf_design_writes_a_loadable_folder_with_errors(tmp_path, capsys):
     assert summary["poses"] == 20 and summary["exact"] >= 20 and summary["exact_length_max_m"] < 1e-6
     assert (out / "errors.png").stat().st_size > 1000
     rows = (out / "errors.csv").read_text().splitlines()
-    assert rows[0].startswith("path,length_max_mm") and len(rows) == m.ntendon + 1
     conv = json.loads((out / "conversion.json").read_text())
+    composed = [t for t in conv["tied_joints"] if "composed_terms" in t]   # each a fixed tendon
+    assert rows[0].startswith("path,length_max_mm") and len(rows) == m.ntendon - len(composed) + 1
+    assert conv["couplings"] == "composed" and len(composed) == 12   # knee translations, patella points
     assert conv["tied_joints"] and all(t["max_error"] < 2e-3 for t in conv["tied_joints"])
+    assert all(t["max_error"] < 5e-5 for t in composed)
     assert "wrote" in capsys.readouterr().out
     # an existing folder is refused before any work, and kept
     before = sorted(p.name for p in out.iterdir())

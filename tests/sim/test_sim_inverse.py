@@ -20,7 +20,8 @@ def test_inverse_dynamics_equals_opensim_on_trial_frames():
                                  time_range=(0.9, 1.3))
     assert len(r.times) >= 10
     assert r.feet == {"ground_force_": "calcn_r", "1_ground_force_": "calcn_l"}
-    assert r.rms_pct.max() <= 5.0, dict(zip(r.coordinates, r.rms_pct.round(2)))
+    # issue 45's goal is 5 %; with the knee's composed ties (deviation ≤ 4 µm) every coordinate is within 1 %
+    assert r.rms_pct.max() <= 1.0, dict(zip(r.coordinates, r.rms_pct.round(2)))
     # coordinates whose dynamics involve no knee polynomial agree to a small fraction of a percent
     for c in ("lumbar_extension", "lumbar_bending", "lumbar_rotation"):
         assert r.rms_pct[r.coordinates.index(c)] < 0.05

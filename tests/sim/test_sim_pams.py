@@ -18,7 +18,7 @@ from pamkin.sim.pams import P_MAX, PamDrive
 @pytest.fixture(scope="module")
 def setup():
     robot = design_robot()
-    conv = convert_robot(robot)
+    conv = convert_robot(robot, couplings="quartic")
     return robot, conv, conv.compile()
 
 

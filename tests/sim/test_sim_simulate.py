@@ -19,7 +19,7 @@ from pamkin.sim.simulate import harness_walk
 @pytest.fixture(scope="module")
 def robot_conv():
     robot = design_robot()
-    return robot, convert_robot(robot)
+    return robot, convert_robot(robot, couplings="quartic")
 
 
 def test_harness_force_balances_momentum(robot_conv):
