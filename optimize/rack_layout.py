@@ -42,10 +42,12 @@ BRACKET_MAX_M = 0.05
 SLACK_M = 0.01
 #: Spacing of the points along a body or cable checked against bone [m].
 STEP_M = 0.005
+#: Spacing of the points along a body checked against its own (host) bone [m]: finer, as it is checked once.
+HOST_STEP_M = 0.002
 #: Tilts [deg] of a body from its bone's shaft tried besides the shaft direction itself.
 TILTS = ((6.0, 0.0), (-6.0, 0.0), (0.0, 6.0), (0.0, -6.0))
 #: Extra clearance a candidate keeps from the other bones at the sampled poses, for the poses between them [m].
-MARGIN_M = 0.002
+MARGIN_M = 0.003
 
 
 @dataclass
@@ -149,7 +151,7 @@ def _host_check(bones, host, G, guide, anchor, near, r, gap, bracket_max) -> flo
     d_br = bones.body_closest(host, np.vstack([anchor, guide]))[0]
     if not (np.all(d_br > 0) and np.all(d_br <= bracket_max)):
         return None
-    body = _axis_points(anchor, near, STEP_M)
+    body = _axis_points(anchor, near, HOST_STEP_M)
     if np.min(bones.body_closest(host, body, far=r + gap + 0.01)[0]) < r + gap:
         return None
     cable = _axis_points(guide, G, STEP_M)[1:-1]
