@@ -260,9 +260,32 @@ def choose(cands: list[Candidate], pairs: np.ndarray, n_pams: int, time_limit: f
     cost = -1.0 + 0.1 * bracket / BRACKET_MAX_M
     res = milp(cost, constraints=LinearConstraint(A, -np.inf, 1.0), integrality=np.ones(C),
                bounds=Bounds(0.0, ub), options={"time_limit": time_limit})
-    if res.x is None:
-        return {}
+    greedy = _greedy(cands, pairs, ub)
+    if res.x is None or np.sum(res.x > 0.5) < len(greedy):     # no solution within the time limit
+        return greedy
     return {cands[c].pam: cands[c] for c in np.flatnonzero(res.x > 0.5)}
+
+
+def _greedy(cands: list[Candidate], pairs: np.ndarray, ub: np.ndarray) -> dict[int, Candidate]:
+    """A conflict-free choice without the integer program: PAMs with the fewest candidates first, each its
+    lowest-bracket candidate that conflicts with none chosen (the fallback where HiGHS finds no solution in
+    its time limit)."""
+    C = len(cands)
+    nbr = [[] for _ in range(C)]
+    for a, b in pairs:
+        nbr[a].append(b)
+        nbr[b].append(a)
+    count = np.bincount([c.pam for c in cands])
+    order = sorted(range(C), key=lambda c: (count[cands[c].pam], cands[c].bracket))
+    taken, blocked, out = set(), np.zeros(C, dtype=bool), {}
+    for c in order:
+        p = cands[c].pam
+        if p in taken or blocked[c] or ub[c] == 0:
+            continue
+        taken.add(p)
+        out[p] = cands[c]
+        blocked[nbr[c]] = True
+    return out
 
 
 @dataclass

@@ -189,3 +189,23 @@ def test_only_the_movable_pams_move_and_the_others_are_obstacles(skel):
     caps = [pam_capsules(pts, pl.segment, L + 0.025, pl.side) for pl, pts, L in placements(new, skel, q)]
     r = body_radius(20)
     assert np.min(body_distances(caps[0], caps[1], r, r)) >= BODY_GAP_M - 1e-9
+
+
+def test_the_choice_by_hand():
+    """Three PAMs, four candidates, two conflicts that forbid placing all three: the integer program places two
+    with the lower brackets (PAM 0 on its 10 mm candidate, PAM 2); the greedy fallback places two without a
+    conflict; a candidate in conflict with its own mirror image is never chosen."""
+    from pamkin.optimize.rack_layout import Candidate, _greedy, choose
+
+    m = RackMount("origin", "tibia_r", (0, 0, 0), (0, 0, 0.1))
+    z = np.zeros(3)
+    cands = [Candidate(0, m, 0.01, z, z, 0.010), Candidate(0, m, 0.01, z, z, 0.020),
+             Candidate(1, m, 0.01, z, z, 0.030), Candidate(2, m, 0.01, z, z, 0.030)]
+    pairs = np.array([[0, 2], [1, 3]])
+    pick = choose(cands, pairs, 3)
+    assert set(pick) == {0, 2} and pick[0] is cands[0]
+    g = _greedy(cands, pairs, np.ones(4))
+    chosen = {id(c) for c in g.values()}
+    assert len(g) == 2 and not any(id(cands[a]) in chosen and id(cands[b]) in chosen for a, b in pairs)
+    pick = choose(cands, np.array([[0, 2], [1, 3], [3, 3]]), 3)     # candidate 3 hits its mirror image
+    assert set(pick) == {0, 1} and pick[0] is cands[1] and pick[1] is cands[2]
