@@ -31,6 +31,7 @@ from scipy.sparse import vstack as sparse_vstack
 from pamkin.audit.assembly import BODY_GAP_M, body_radius
 from pamkin.human.bones import segment_distances
 from pamkin.opensim.model_file import PathPoint
+from pamkin.robot import festo
 from pamkin.robot.biped import placements
 from pamkin.robot.design import mirror_name
 from pamkin.robot.pam_body import pam_capsules
@@ -38,7 +39,7 @@ from pamkin.robot.rack import RackMount, has_rack, rack_pam, route_end
 
 #: Largest distance of a bracket (anchor, guide) from its bone [m] (issue: brackets up to 50 mm).
 BRACKET_MAX_M = 0.05
-#: Cable between the body's near end and the guide pulley at rest [m].
+#: Room left between the longest body (stretched to the pretension limit) and the guide pulley [m].
 SLACK_M = 0.01
 #: Spacing of the points along a body or cable checked against bone [m].
 STEP_M = 0.005
@@ -58,7 +59,7 @@ class Candidate:
         pam: Index of the PAM in the design.
         mount: The rack.
         radius: Body radius [m].
-        a, b: (3,) body axis ends in the host frame (a: the anchor end) [m].
+        a, b: (3,) ends of the piece the body may occupy, host frame (a: the anchor, b: the guide pulley) [m].
         bracket: The larger of the anchor's and the guide's distance from bone [m].
         route_end: (3,) the route's end point the guide turns the cable to (host frame) [m].
     """
@@ -118,7 +119,8 @@ def candidates(k: int, pam, end: str, bones, fitting: float, angles: int = 16,
     shaft = _long_axis(V)
     towards = shaft if np.dot(V.mean(axis=0) - G, shaft) > 0 else -shaft
     r = body_radius(pam.diameter_mm)
-    length = pam.resting_length_m + 2 * fitting
+    # the longest the body gets (stretched to Festo's pretension limit) plus both fittings
+    length = pam.resting_length_m * (1.0 + festo.max_pretension(pam.diameter_mm)) + 2 * fitting
     axes = [towards] + [_tilted(towards, t) for t in TILTS]
     if both_ways:
         axes += [-towards] + [s * e for e in np.eye(3) for s in (1.0, -1.0) if abs(np.dot(e, shaft)) < 0.9]
@@ -137,8 +139,9 @@ def _ring(k, end, host, G, u, r, length, bones, angles, heights, shifts, gap, br
         for h in heights:
             for s in shifts:
                 guide = G + h * w + s * u
-                near = guide + SLACK_M * u
-                anchor = near + length * u
+                anchor = guide + (length + SLACK_M) * u
+                # the body may reach the guide pulley (never past it): the whole piece must clear
+                near = guide
                 c = _host_check(bones, host, G, guide, anchor, near, r, gap, bracket_max)
                 if c is not None:
                     out.append(Candidate(k, RackMount(end, host, tuple(anchor), tuple(guide)), r, anchor, near, c,
