@@ -319,6 +319,31 @@ def _route_bodies(design, model, q: np.ndarray, ks) -> list[list]:
     return out
 
 
+def _checked(pick: dict, pool: list[Candidate], pairs: np.ndarray, bones, kin, q: np.ndarray, gap: float,
+             right: list[str], n_pams: int, time_limit: float, tries: int = 5):
+    """``pick`` checked at the poses ``q`` (right-leg bones): chosen candidates too close to another bone there
+    are dropped from the pool and the choice made again, until every chosen one passes (at most ``tries``
+    times; what still fails is dropped from the choice). Returns (pick, pool, pairs)."""
+    st = kin.forward(q, warn_range=False)
+    for _ in range(tries):
+        chosen = list(pick.values())
+        good = {id(c) for c in keep_clear(chosen, bones, st, kin, gap, right)}
+        bad = [c for c in chosen if id(c) not in good]
+        if not bad:
+            return pick, pool, pairs
+        index = {id(c): i for i, c in enumerate(pool)}
+        drop = {index[id(c)] for c in bad}
+        keep = [i for i in range(len(pool)) if i not in drop]
+        remap = np.full(len(pool), -1)
+        remap[keep] = np.arange(len(keep))
+        pool = [pool[i] for i in keep]
+        pairs = remap[pairs] if len(pairs) else pairs
+        pairs = pairs[(pairs >= 0).all(axis=1)] if len(pairs) else pairs
+        pick = choose(pool, pairs, n_pams, time_limit)
+    good = {id(c) for c in keep_clear(list(pick.values()), bones, st, kin, gap, right)}
+    return {k: c for k, c in pick.items() if id(c) in good}, pool, pairs
+
+
 def _drop_near(pool: list[Candidate], pairs: np.ndarray, design, model, q: np.ndarray, obstacles: list[int],
                gap: float) -> tuple[list[Candidate], np.ndarray]:
     """``pool`` without the candidates closer than ``gap`` to the bodies of the PAMs ``obstacles`` (indices)
@@ -353,13 +378,15 @@ def _clear_of(cands: list[Candidate], pieces: list, radii: list[float], state, k
 
 def layout(design, model, bones, q_random: np.ndarray, q_gait: np.ndarray, gap: float = BODY_GAP_M,
            bracket_max: float = BRACKET_MAX_M, angles: int = 16, time_limit: float = 120.0, rounds: int = 1,
-           movable: set[int] | None = None, say=None):
+           movable: set[int] | None = None, q_check: np.ndarray | None = None, say=None):
     """Every PAM of ``design`` hung on the rack :func:`choose` gives it, the others left on their routes:
     ``(new design, RackReport)``. Candidates (:func:`candidates`) are checked at the random poses (right-leg
     bones) and the walking poses (every bone); conflicts over both, right against left over the walking
     poses. Only the PAMs whose ids are in ``movable`` (default: all) and that hang on no rack yet get
     candidates; the others are obstacles where they are (candidates closer than ``gap`` to their bodies are
-    dropped). With ``rounds`` > 1 the PAMs left on their routes become obstacles too and the choice is made
+    dropped). ``q_check``: more random poses on which the chosen racks are checked again against the other bones
+    (:func:`keep_clear`); a chosen candidate that fails there is dropped and the choice made again. With
+    ``rounds`` > 1 the PAMs left on their routes become obstacles too and the choice is made
     again (at most ``rounds`` times; it places fewer PAMs)."""
     kin = model.kinematics
     st, sg = kin.forward(q_random, warn_range=False), kin.forward(q_gait, warn_range=False)
@@ -383,6 +410,9 @@ def layout(design, model, bones, q_random: np.ndarray, q_gait: np.ndarray, gap: 
     pick, done = {}, 0
     for done in range(1, rounds + 1):
         pick = choose(pool, pairs, len(design.pams), time_limit)
+        if q_check is not None and len(q_check):
+            pick, pool, pairs = _checked(pick, pool, pairs, bones, kin, q_check, gap, right, len(design.pams),
+                                         time_limit)
         left = [k for k in moving if k not in pick]
         if not left or done == rounds:
             break

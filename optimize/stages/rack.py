@@ -14,6 +14,8 @@ from pamkin.optimize.results import ActuatorResult
 
 #: Random stream of the stage's poses (never the audit's).
 RACK_STREAM = 0xA0D8
+#: Random stream of the poses the chosen racks are checked at again (never the audit's).
+RACK_CHECK_STREAM = 0xA0D9
 
 
 def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
@@ -23,13 +25,14 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
     for r in results:
         design = design.replace_pam(r.pam)
     q = random_poses(ctx.human, ctx.rom, cfg.poses, ctx.cfg.seed, stream=RACK_STREAM)
+    q_check = random_poses(ctx.human, ctx.rom, cfg.check_poses, ctx.cfg.seed, stream=RACK_CHECK_STREAM)
     qg = gait_poses(ctx.human, GAIT_IK, stride=cfg.gait_stride)[0] if cfg.gait else q[:0]
 
     def say(line: str) -> None:
         print(line, file=ctx.stream, flush=True)
     ids = {r.id for r in results}
     new, rep = layout(design, ctx.human, ctx.bones, q, qg, gap=cfg.gap_m, bracket_max=cfg.bracket_max_m,
-                      angles=cfg.angles, time_limit=cfg.time_limit_s, movable=ids, say=say)
+                      angles=cfg.angles, time_limit=cfg.time_limit_s, movable=ids, q_check=q_check, say=say)
     lines = [f"rack: {len(rep.placed)} of {len(ids)} PAMs hung on racks ({rep.candidates} candidates, "
              f"{rep.conflicts} conflicting pairs, {rep.rounds} rounds); left on their routes: "
              + (", ".join(f"{i} {design.pam(i).name}" for i in rep.unplaced) or "none")]

@@ -156,7 +156,8 @@ def test_the_pipeline_stage_racks_the_toy_pams(skel):
 
     names = [s.name for s in STAGES]
     assert names[-1] == "rack"
-    on = RunConfig().replace({"rack.enabled": True, "rack.poses": 10, "rack.gait": False, "rack.angles": 8})
+    on = RunConfig().replace({"rack.enabled": True, "rack.poses": 10, "rack.check_poses": 40, "rack.gait": False,
+                              "rack.angles": 8})
     assert STAGES[-1].enabled(on) and not STAGES[-1].enabled(RunConfig())
     cyl = _toy_bone()
     bones = BoneSet.from_meshes(skel, {"tibia_r": [(cyl.vertices, cyl.faces)]})
