@@ -58,7 +58,8 @@ def add_parsers(sub) -> None:
                    help="walk: admittance damping of the harness height [N·s/m]: offset rate = -(load - support x "
                         "weight) / admittance (default 300)")
     s.add_argument("--rigid-harness", action="store_true",
-                   help="walk: the harness rigid on the trial's pelvis (no load regulation; --support ignored)")
+                   help="walk: the harness rigid on the trial's pelvis (no load regulation; --support ignored; "
+                        "default: its height regulated on the measured load)")
     s.add_argument("--no-treadmill", action="store_true",
                    help="walk: a fixed floor (default: a treadmill belt at the trial's speed, as the trial was recorded "
                         "on a treadmill: its pelvis does not advance)")
