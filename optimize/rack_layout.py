@@ -311,7 +311,7 @@ def mirror_candidate(c: Candidate) -> Candidate:
     return Candidate(c.pam, m, c.radius, f(c.a), f(c.b), c.bracket, tuple(f(c.route_end)))
 
 
-def _route_bodies(design, model, q: np.ndarray, ks) -> list[list]:
+def _route_bodies(design, model, q: np.ndarray) -> list[list]:
     """Per PAM the body pieces on its route (as the audit places them) at poses ``q``."""
     out = []
     for (place, pts, length) in placements(design, model, q):
@@ -331,14 +331,8 @@ def _checked(pick: dict, pool: list[Candidate], pairs: np.ndarray, bones, kin, q
         bad = [c for c in chosen if id(c) not in good]
         if not bad:
             return pick, pool, pairs
-        index = {id(c): i for i, c in enumerate(pool)}
-        drop = {index[id(c)] for c in bad}
-        keep = [i for i in range(len(pool)) if i not in drop]
-        remap = np.full(len(pool), -1)
-        remap[keep] = np.arange(len(keep))
-        pool = [pool[i] for i in keep]
-        pairs = remap[pairs] if len(pairs) else pairs
-        pairs = pairs[(pairs >= 0).all(axis=1)] if len(pairs) else pairs
+        dropped = {id(c) for c in bad}
+        pool, pairs = _subset(pool, pairs, [c for c in pool if id(c) not in dropped])
         pick = choose(pool, pairs, n_pams, time_limit)
     good = {id(c) for c in keep_clear(list(pick.values()), bones, st, kin, gap, right)}
     return {k: c for k, c in pick.items() if id(c) in good}, pool, pairs
@@ -350,15 +344,22 @@ def _drop_near(pool: list[Candidate], pairs: np.ndarray, design, model, q: np.nd
     where they are at poses ``q``, and ``pairs`` renumbered for it."""
     if not obstacles or not pool:
         return pool, pairs
-    bodies = _route_bodies(design, model, q, None)
+    bodies = _route_bodies(design, model, q)
     radii = [body_radius(p.diameter_mm) for p in design.pams]
     st = model.kinematics.forward(q, warn_range=False)
     kept = _clear_of(pool, [bodies[k] for k in obstacles], [radii[k] for k in obstacles], st, model.kinematics, gap)
+    return _subset(pool, pairs, kept)
+
+
+def _subset(pool: list[Candidate], pairs: np.ndarray, kept: list[Candidate]) -> tuple[list[Candidate], np.ndarray]:
+    """``kept`` (a sub-list of ``pool``, same order) and the conflict ``pairs`` among them, renumbered."""
     index = {id(c): i for i, c in enumerate(pool)}
     remap = np.full(len(pool), -1)
     remap[[index[id(c)] for c in kept]] = np.arange(len(kept))
-    pairs = remap[pairs] if len(pairs) else pairs
-    return kept, pairs[(pairs >= 0).all(axis=1)] if len(pairs) else pairs
+    if not len(pairs):
+        return kept, pairs
+    pairs = remap[pairs]
+    return kept, pairs[(pairs >= 0).all(axis=1)]
 
 
 def _clear_of(cands: list[Candidate], pieces: list, radii: list[float], state, kin, gap: float) -> list[Candidate]:

@@ -79,18 +79,25 @@ def _toy_bone():
     return cyl
 
 
-def test_two_toy_pams_forced_together_end_apart(skel):
-    """Two 20 mm PAMs with the same route (tibia → calcaneus, both starting 25 mm off a toy tibia): on their
-    routes their bodies coincide. The layout hangs both on racks: at every pose their bodies are ≥ 5 mm
-    apart and ≥ 5 mm from the toy bone (measured with the audit's own functions), their brackets within
-    50 mm of it, and their torques unchanged."""
+def _toy_pair(skel, rom: str | None = None):
+    """The toy tibia (:func:`_toy_bone`) as the only bone, and two 20 mm PAMs on one route from 25 mm off it to
+    the calcaneus (their bodies coincide on it): ``(bones, design)``."""
     cyl = _toy_bone()
     bones = BoneSet.from_meshes(skel, {"tibia_r": [(cyl.vertices, cyl.faces)]})
     route = (PathPoint("p1", "tibia_r", (0.025, -0.12, 0.0)), PathPoint("p2", "calcn_r", (0.1, 0.03, 0.0)))
     base = load_design("thesis").pam(16)
     pams = tuple(dataclasses.replace(base, id=i, name=f"toy {i}", points=route, resting_length_m=0.15,
                                      tendon_length_m=0.2, rollers=(), pam_on=None, pam_at=None) for i in (1, 2))
-    des = Design("toy", pams, fitting_length_m=0.0125)
+    kw = {"rom": rom} if rom else {}
+    return bones, Design("toy", pams, fitting_length_m=0.0125, **kw)
+
+
+def test_two_toy_pams_forced_together_end_apart(skel):
+    """Two 20 mm PAMs with the same route (tibia → calcaneus, both starting 25 mm off a toy tibia): on their
+    routes their bodies coincide. The layout hangs both on racks: at every pose their bodies are ≥ 5 mm
+    apart and ≥ 5 mm from the toy bone (measured with the audit's own functions), their brackets within
+    50 mm of it, and their torques unchanged."""
+    bones, des = _toy_pair(skel)
     q = _poses(skel, 30)
     before = placements(des, skel, q)
     caps = [pam_capsules(pts, pl.segment, L + 0.025, pl.side) for pl, pts, L in before]
@@ -159,13 +166,7 @@ def test_the_pipeline_stage_racks_the_toy_pams(skel):
     on = RunConfig().replace({"rack.enabled": True, "rack.poses": 10, "rack.check_poses": 40, "rack.gait": False,
                               "rack.angles": 8})
     assert STAGES[-1].enabled(on) and not STAGES[-1].enabled(RunConfig())
-    cyl = _toy_bone()
-    bones = BoneSet.from_meshes(skel, {"tibia_r": [(cyl.vertices, cyl.faces)]})
-    route = (PathPoint("p1", "tibia_r", (0.025, -0.12, 0.0)), PathPoint("p2", "calcn_r", (0.1, 0.03, 0.0)))
-    base = load_design("thesis").pam(16)
-    pams = tuple(dataclasses.replace(base, id=i, name=f"toy {i}", points=route, resting_length_m=0.15,
-                                     tendon_length_m=0.2, rollers=(), pam_on=None, pam_at=None) for i in (1, 2))
-    seed = Design("toy", pams, fitting_length_m=0.0125, rom="robot_thesis")
+    bones, seed = _toy_pair(skel, rom="robot_thesis")
     results = [ActuatorResult(p.id, p.name, p, "Solve_Succeeded", True) for p in seed.pams]
     ctx = SimpleNamespace(cfg=on, seed_design=seed, human=skel, rom=load_rom(seed.rom, "r"), bones=bones,
                           stream=io.StringIO(), rack=[])
@@ -177,13 +178,7 @@ def test_the_pipeline_stage_racks_the_toy_pams(skel):
 def test_only_the_movable_pams_move_and_the_others_are_obstacles(skel):
     """Two toy PAMs on one route; only the second may move: it ends on a rack ≥ 5 mm from the first one's body,
     which stays on its route."""
-    cyl = _toy_bone()
-    bones = BoneSet.from_meshes(skel, {"tibia_r": [(cyl.vertices, cyl.faces)]})
-    route = (PathPoint("p1", "tibia_r", (0.025, -0.12, 0.0)), PathPoint("p2", "calcn_r", (0.1, 0.03, 0.0)))
-    base = load_design("thesis").pam(16)
-    pams = tuple(dataclasses.replace(base, id=i, name=f"toy {i}", points=route, resting_length_m=0.15,
-                                     tendon_length_m=0.2, rollers=(), pam_on=None, pam_at=None) for i in (1, 2))
-    des = Design("toy", pams, fitting_length_m=0.0125)
+    bones, des = _toy_pair(skel)
     q = _poses(skel, 20)
     new, rep = layout(des, skel, bones, q, q[:0], angles=12, time_limit=30, movable={2})
     assert list(rep.placed) == [2] and rep.unplaced == [] and not has_rack(new.pam(1)) and has_rack(new.pam(2))
