@@ -100,6 +100,8 @@ class Limits:
     pretension_scale: float = key(1.0, "stretch limit = pretension_scale x Festo's limit", 0, 1.0)
     fix_lengths: bool = key(False, "keep the seed resting and tendon lengths (move attachment points only)")
     move_moving_points: bool = key(True, "offset points that move with a coordinate (the patella) within the region")
+    max_resting_length_m: float = key(0.0, "longest resting length a fit may choose [m] (0: Festo's longest for "
+                                           "the diameter): a body short enough for a rack", 0, 10.0)
     rated_force: bool = key(True, "force per PAM <= Festo's rated force and contraction <= Festo's maximum (0.25)")
     one_segment: bool = key(False, "the PAM (+ fittings) fits on one straight segment of its route, as a "
                                    "constraint of every solve (slow, poor fits: the [mount] step instead)")

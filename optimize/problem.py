@@ -288,6 +288,8 @@ class ActuatorProblem:
             lbx += list(lo)
             ubx += list(hi)
         lmin, lmax = festo.nominal_length_range(diameter)
+        if cfg.limits.max_resting_length_m > 0:
+            lmax = max(lmin, min(lmax, cfg.limits.max_resting_length_m))
         if cfg.limits.fix_lengths:
             rest, tendon = data.pam.resting_length_m, max(data.pam.tendon_length_m, 0.0)
             lbx += [rest, tendon]

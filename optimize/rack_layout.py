@@ -47,6 +47,9 @@ STEP_M = 0.005
 HOST_STEP_M = 0.002
 #: Tilts [deg] of a body from its bone's shaft tried besides the shaft direction itself.
 TILTS = ((6.0, 0.0), (-6.0, 0.0), (0.0, 6.0), (0.0, -6.0))
+#: Relative optimality gap at which the integer program stops (a PAM placed is worth 1 against at most 0.1 for
+#: its brackets: 1 % of the ~15-30 PAMs placed is below one PAM).
+MIP_GAP = 0.01
 #: Extra clearance a candidate keeps from the other bones at the sampled poses, for the poses between them [m].
 MARGIN_M = 0.003
 
@@ -75,7 +78,7 @@ class Candidate:
 
 def _long_axis(V: np.ndarray) -> np.ndarray:
     """Unit principal axis of the largest spread of the points ``V`` (a bone's vertices): its shaft."""
-    w, vec = np.linalg.eigh(np.cov((V - V.mean(axis=0)).T))
+    _, vec = np.linalg.eigh(np.cov((V - V.mean(axis=0)).T))
     return vec[:, -1] / np.linalg.norm(vec[:, -1])
 
 
@@ -95,12 +98,6 @@ def _frame(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, np.cross(u, e1)
 
 
-def _axis_points(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
-    n = max(2, int(np.ceil(np.linalg.norm(b - a) / step)) + 1)
-    t = np.linspace(0.0, 1.0, n)
-    return a[None] + t[:, None] * (b - a)[None]
-
-
 def candidates(k: int, pam, end: str, bones, fitting: float, angles: int = 16,
                heights=(0.01, 0.02, 0.03, 0.045, 0.06, 0.08), shifts=(0.0, 0.04, 0.08),
                gap: float = BODY_GAP_M, bracket_max: float = BRACKET_MAX_M, both_ways: bool = True
@@ -118,7 +115,7 @@ def candidates(k: int, pam, end: str, bones, fitting: float, angles: int = 16,
     V = np.concatenate([m.vertices for m in bones.meshes[host]])
     shaft = _long_axis(V)
     towards = shaft if np.dot(V.mean(axis=0) - G, shaft) > 0 else -shaft
-    r = body_radius(pam.diameter_mm)
+    r = body_radius(pam.diameter_mm, pam.n_parallel)
     # the longest the body gets (stretched to Festo's pretension limit) plus both fittings
     length = pam.resting_length_m * (1.0 + festo.max_pretension(pam.diameter_mm)) + 2 * fitting
     axes = [towards] + [_tilted(towards, t) for t in TILTS]
@@ -131,36 +128,49 @@ def candidates(k: int, pam, end: str, bones, fitting: float, angles: int = 16,
 
 
 def _ring(k, end, host, G, u, r, length, bones, angles, heights, shifts, gap, bracket_max) -> list[Candidate]:
-    """The candidates of one direction ``u`` along the host bone (:func:`candidates`)."""
+    """The candidates of one direction ``u`` along the host bone (:func:`candidates`); every placement of the
+    ring checked at once (:func:`_host_checks`)."""
     e1, e2 = _frame(u)
-    out = []
-    for phi in np.linspace(0.0, 2 * np.pi, angles, endpoint=False):
-        w = np.cos(phi) * e1 + np.sin(phi) * e2
-        for h in heights:
-            for s in shifts:
-                guide = G + h * w + s * u
-                anchor = guide + (length + SLACK_M) * u
-                # the body may reach the guide pulley (never past it): the whole piece must clear
-                near = guide
-                c = _host_check(bones, host, G, guide, anchor, near, r, gap, bracket_max)
-                if c is not None:
-                    out.append(Candidate(k, RackMount(end, host, tuple(anchor), tuple(guide)), r, anchor, near, c,
-                                          tuple(G)))
+    phi = np.linspace(0.0, 2 * np.pi, angles, endpoint=False)
+    w = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2                     # (angles, 3)
+    h, sh = np.meshgrid(np.asarray(heights, float), np.asarray(shifts, float), indexing="ij")
+    # guides in the order angle, height, shift; the anchor one body (+ slack) along u from its guide
+    guide = (G + w[:, None, None, :] * h[None, :, :, None] + sh[None, :, :, None] * u).reshape(-1, 3)
+    anchor = guide + (length + SLACK_M) * u
+    bracket = _host_checks(bones, host, G, guide, anchor, r, gap, bracket_max)
+    # the body may reach the guide pulley (never past it): the whole anchor-guide piece must clear
+    return [Candidate(k, RackMount(end, host, tuple(anchor[i]), tuple(guide[i])), r, anchor[i], guide[i],
+                      float(bracket[i]), tuple(G)) for i in np.flatnonzero(np.isfinite(bracket))]
+
+
+def _host_checks(bones, host, G, guide, anchor, r, gap, bracket_max) -> np.ndarray:
+    """(M,) bracket height [m] of each placement (``guide``, ``anchor``: (M, 3)) passing its host-frame checks
+    (both brackets outside the bone and within ``bracket_max`` of it, the anchor-guide piece ``r + gap`` clear
+    of it, the cable from the guide to the route end ``G`` out of it), +inf where it fails."""
+    M = len(guide)
+    out = np.full(M, np.inf)
+    d_br = bones.body_closest(host, np.vstack([anchor, guide]))[0].reshape(2, M)
+    ok = np.all((d_br > 0) & (d_br <= bracket_max), axis=0)
+    idx = np.flatnonzero(ok)
+    if len(idx):
+        body = _segment_points(anchor[idx], guide[idx], HOST_STEP_M)
+        d = bones.body_closest(host, body.reshape(-1, 3), far=r + gap + 0.01)[0].reshape(len(idx), -1)
+        idx = idx[d.min(axis=1) >= r + gap]
+    if len(idx):
+        cable = _segment_points(guide[idx], np.repeat(np.asarray(G, float)[None], len(idx), 0), STEP_M)[:, 1:-1]
+        if cable.shape[1]:
+            d = bones.body_closest(host, cable.reshape(-1, 3), far=0.01)[0].reshape(len(idx), -1)
+            idx = idx[d.min(axis=1) >= 0.001]
+    out[idx] = np.max(d_br[:, idx], axis=0)
     return out
 
 
-def _host_check(bones, host, G, guide, anchor, near, r, gap, bracket_max) -> float | None:
-    """Bracket height [m] where the candidate passes its host-frame checks, else None."""
-    d_br = bones.body_closest(host, np.vstack([anchor, guide]))[0]
-    if not (np.all(d_br > 0) and np.all(d_br <= bracket_max)):
-        return None
-    body = _axis_points(anchor, near, HOST_STEP_M)
-    if np.min(bones.body_closest(host, body, far=r + gap + 0.01)[0]) < r + gap:
-        return None
-    cable = _axis_points(guide, G, STEP_M)[1:-1]
-    if len(cable) and np.min(bones.body_closest(host, cable, far=0.01)[0]) < 0.001:
-        return None
-    return float(np.max(d_br))
+def _segment_points(A: np.ndarray, B: np.ndarray, step: float) -> np.ndarray:
+    """(M, K, 3) points every ``step`` or closer from each ``A`` to its ``B`` ((M, 3) each), the same K for
+    all (the longest segment's count)."""
+    n = max(2, int(np.ceil(np.max(np.linalg.norm(B - A, axis=1), initial=0.0) / step)) + 1)
+    t = np.linspace(0.0, 1.0, n)
+    return A[:, None] + t[None, :, None] * (B - A)[:, None]
 
 
 def world(cands: list[Candidate], state, kin) -> tuple[np.ndarray, np.ndarray]:
@@ -183,22 +193,15 @@ def keep_clear(cands: list[Candidate], bones, state, kin, gap: float = BODY_GAP_
     keep = []
     for i, c in enumerate(cands):
         others = [b for b in (bodies or bones.bodies) if b != c.mount.host]
-        P = _along(Aw[:, i], Bw[:, i])
+        P = _segment_points(Aw[:, i], Bw[:, i], STEP_M)
         d = bones.signed_distance(state, P, margin=c.radius + gap + margin + 0.01, bodies=others, prune=True)[0]
         if np.min(d) < c.radius + gap + margin:
             continue
-        C = _along(Gw[:, i], Ew[:, i])[:, 1:-1]
+        C = _segment_points(Gw[:, i], Ew[:, i], STEP_M)[:, 1:-1]
         if C.shape[1] and np.min(bones.signed_distance(state, C, margin=0.01, bodies=others, prune=True)[0]) < 0.001:
             continue
         keep.append(c)
     return keep
-
-
-def _along(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """(S, K, 3) points every :data:`STEP_M` or closer from ``A`` to ``B`` (S, 3)."""
-    n = max(2, int(np.ceil(np.max(np.linalg.norm(B - A, axis=1)) / STEP_M)) + 1)
-    t = np.linspace(0.0, 1.0, n)
-    return A[:, None] + t[None, :, None] * (B - A)[:, None]
 
 
 def _end_point(c: Candidate) -> np.ndarray:
@@ -262,7 +265,7 @@ def choose(cands: list[Candidate], pairs: np.ndarray, n_pams: int, time_limit: f
     bracket = np.array([c.bracket for c in cands])
     cost = -1.0 + 0.1 * bracket / BRACKET_MAX_M
     res = milp(cost, constraints=LinearConstraint(A, -np.inf, 1.0), integrality=np.ones(C),
-               bounds=Bounds(0.0, ub), options={"time_limit": time_limit})
+               bounds=Bounds(0.0, ub), options={"time_limit": time_limit, "mip_rel_gap": MIP_GAP})
     greedy = _greedy(cands, pairs, ub)
     if res.x is None or np.sum(res.x > 0.5) < len(greedy):     # no solution within the time limit
         return greedy
@@ -321,21 +324,28 @@ def _route_bodies(design, model, q: np.ndarray) -> list[list]:
 
 def _checked(pick: dict, pool: list[Candidate], pairs: np.ndarray, bones, kin, q: np.ndarray, gap: float,
              right: list[str], n_pams: int, time_limit: float, tries: int = 5):
-    """``pick`` checked at the poses ``q`` (right-leg bones): chosen candidates too close to another bone there
-    are dropped from the pool and the choice made again, until every chosen one passes (at most ``tries``
-    times; what still fails is dropped from the choice). Returns (pick, pool, pairs)."""
+    """``pick`` checked at the poses ``q`` (right-leg bones): where a chosen candidate comes too close to another
+    bone there, every candidate of its PAM is checked there too, the failing ones leave the pool and the choice
+    is made again, until every chosen one passes (at most ``tries`` times; what still fails is dropped from the
+    choice). Returns (pick, pool, pairs)."""
     st = kin.forward(q, warn_range=False)
+    passed: set[int] = set()                      # ids of the candidates checked at q and passing
+
+    def check(cands: list[Candidate]) -> list[Candidate]:
+        todo = [c for c in cands if id(c) not in passed]
+        passed.update(id(c) for c in keep_clear(todo, bones, st, kin, gap, right))
+        return [c for c in cands if id(c) not in passed]
+
     for _ in range(tries):
-        chosen = list(pick.values())
-        good = {id(c) for c in keep_clear(chosen, bones, st, kin, gap, right)}
-        bad = [c for c in chosen if id(c) not in good]
+        bad = check(list(pick.values()))
         if not bad:
             return pick, pool, pairs
-        dropped = {id(c) for c in bad}
+        failing = {c.pam for c in bad}
+        dropped = {id(c) for c in check([c for c in pool if c.pam in failing])}
         pool, pairs = _subset(pool, pairs, [c for c in pool if id(c) not in dropped])
         pick = choose(pool, pairs, n_pams, time_limit)
-    good = {id(c) for c in keep_clear(list(pick.values()), bones, st, kin, gap, right)}
-    return {k: c for k, c in pick.items() if id(c) in good}, pool, pairs
+    bad = {id(c) for c in check(list(pick.values()))}
+    return {k: c for k, c in pick.items() if id(c) not in bad}, pool, pairs
 
 
 def _drop_near(pool: list[Candidate], pairs: np.ndarray, design, model, q: np.ndarray, obstacles: list[int],
@@ -345,7 +355,7 @@ def _drop_near(pool: list[Candidate], pairs: np.ndarray, design, model, q: np.nd
     if not obstacles or not pool:
         return pool, pairs
     bodies = _route_bodies(design, model, q)
-    radii = [body_radius(p.diameter_mm) for p in design.pams]
+    radii = [body_radius(p.diameter_mm, p.n_parallel) for p in design.pams]
     st = model.kinematics.forward(q, warn_range=False)
     kept = _clear_of(pool, [bodies[k] for k in obstacles], [radii[k] for k in obstacles], st, model.kinematics, gap)
     return _subset(pool, pairs, kept)

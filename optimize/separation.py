@@ -99,7 +99,7 @@ class _State:
         for k, (place, pts, pam_len) in enumerate(self.places):
             j, side = (place.segment, place.side) if fixed is None else fixed[k]
             self.pieces.append(pam_capsules(pts, j, pam_len + fit, side))
-        self.radius = [body_radius(p.diameter_mm) for p in design.pams]
+        self.radius = [body_radius(p.diameter_mm, p.n_parallel) for p in design.pams]
 
 
 def _contacts(st: _State, bones, kin, gap: float, bone_gap: float, step: float):

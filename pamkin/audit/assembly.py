@@ -1,7 +1,8 @@
 """Whether a design's PAM bodies can be put together: body–body gaps and body–bone clearance.
 
 A PAM body is a capsule (a cylinder with rounded ends) of the PAM's largest outer radius — the contracted,
-inflated DMSP with its fittings, :func:`body_radius` — along the part of its route where the audit places
+inflated DMSP with its fittings, :func:`body_radius`; for PAMs in parallel on one route, the capsule around the
+bundle — along the part of its route where the audit places
 it (:func:`pamkin.robot.pam_body.pam_capsules`: the PAM length plus both fittings from the anchored end of
 its mount segment). Given as *pieces*, one ``(A, B, valid)`` per route segment with (S, 3) ends and an (S,)
 mask of the samples where the body covers that segment.
@@ -26,17 +27,25 @@ import numpy as np
 from pamkin.human.bones import segment_distances
 from pamkin.robot import festo
 
-__all__ = ["BODY_GAP_M", "PairGap", "body_distances", "body_points", "body_radius", "body_radius_source",
+__all__ = ["BODY_GAP_M", "BUNDLE_FACTOR", "PairGap", "body_distances", "body_points", "body_radius", "body_radius_source",
            "bone_clearance", "pair_gap"]
 
 #: Least gap [m] between two PAM bodies, and between a PAM body and bone, that a build needs.
 BODY_GAP_M = 0.005
 
 
-def body_radius(diameter_mm: int) -> float:
+#: Radius of the smallest circle around n equal circles of radius 1 side by side (n = 1, 2, 3).
+BUNDLE_FACTOR = {1: 1.0, 2: 2.0, 3: 1.0 + 2.0 / 3.0 ** 0.5}
+
+
+def body_radius(diameter_mm: int, n_parallel: int = 1) -> float:
     """Largest outer radius [m] of a PAM body of a Festo size: half the outer envelope of the contracted
-    (inflated, at full pressure) DMSP with its fittings (:func:`pamkin.robot.festo.outer_diameter`)."""
-    return festo.outer_diameter(diameter_mm) / 2.0
+    (inflated, at full pressure) DMSP with its fittings (:func:`pamkin.robot.festo.outer_diameter`). For
+    ``n_parallel`` PAMs side by side on one route (1, 2 or 3), the radius of the capsule around the bundle:
+    2× one body's for two, (1 + 2/√3)× for three."""
+    if n_parallel not in BUNDLE_FACTOR:
+        raise ValueError(f"a PAM bundle has 1, 2 or 3 PAMs side by side, not {n_parallel}")
+    return BUNDLE_FACTOR[n_parallel] * festo.outer_diameter(diameter_mm) / 2.0
 
 
 def body_radius_source() -> str:

@@ -845,7 +845,7 @@ def _body_gaps(des: Design, caps: dict, gap: float) -> tuple[list[dict], list[di
     builds it), left–right over the gait. One dict per pair: ids, names, smallest distance [m], where (set,
     sample) and the fractions of the samples closer than ``gap`` and overlapping."""
     n = len(des.pams)
-    radius = [body_radius(p.diameter_mm) for p in des.pams]
+    radius = [body_radius(p.diameter_mm, p.n_parallel) for p in des.pams]
 
     def row(a: int, b: int, key_of: list) -> dict:
         best = None
@@ -876,7 +876,7 @@ def _body_bone_checks(des: Design, bones, geo: dict, caps: dict, rows: list[dict
     bone), the bone, where, and the fraction of the poses closer than the bone gap."""
     gap = thr["bone_gap_m"]
     for k, (pam, row) in enumerate(zip(des.pams, rows)):
-        r = body_radius(pam.diameter_mm)
+        r = body_radius(pam.diameter_mm, pam.n_parallel)
         best, bone, where, under, total = np.inf, None, None, 0, 0
         for key, st in geo.items():
             c, near = bone_clearance(bones, st, caps[key][k], r, step, reach=0.02,

@@ -91,7 +91,7 @@ def assembly_view(design, path: str | os.PathLike, placements: list, brackets: l
         pieces = pam_capsules(pts, placements[k].segment, ps.pam_lengths[:, c] + fit, placements[k].side)
         for j, (A, B, valid) in enumerate(pieces):
             if valid[0]:
-                _cylinder(vis, g, f"pamkin/bodies/{side}/{pam.key}/{j}", A[0], B[0], body_radius(pam.diameter_mm),
+                _cylinder(vis, g, f"pamkin/bodies/{side}/{pam.key}/{j}", A[0], B[0], body_radius(pam.diameter_mm, pam.n_parallel),
                           BODY_COLORS.get(pam.diameter_mm, 0x7F7F7F), opacity=0.85)
         for i, r in enumerate(robot.rollers[c]):
             b = skel.kinematics.frames.index(r.body)

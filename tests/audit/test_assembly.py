@@ -153,3 +153,15 @@ def test_human_capacity_against_opensim(gait2392_path):
         theirs = direction_capacity(T_ref, sign)[:, cols]
         assert theirs.min() > 0.5                          # every direction has human muscles acting
         np.testing.assert_allclose(ours, theirs, rtol=1e-4, atol=1e-3)
+
+
+def test_a_bundle_of_parallel_pams_is_the_capsule_around_it():
+    """Two (three) PAMs side by side on one route: the circle around two (three) touching circles of radius r
+    has radius 2r ((1 + 2/√3) r), by hand; a bundle size outside 1..3 is named."""
+    r = body_radius(10)
+    assert body_radius(10, 1) == r
+    assert body_radius(10, 2) == pytest.approx(2 * r, rel=1e-15)
+    # three centres on an equilateral triangle of side 2r: circumradius 2r/√3, plus r
+    assert body_radius(10, 3) == pytest.approx(2 * r / np.sqrt(3) + r, rel=1e-15)
+    with pytest.raises(ValueError, match="not 4"):
+        body_radius(10, 4)

@@ -31,6 +31,7 @@ from pamkin.optimize.samples import actuator_data
 from pamkin.robot.design import Design, Pam, ROBOT_DESIGN, load_design
 from pamkin.errors import DataFileError
 from pamkin.opensim.model_file import PathPoint
+from pamkin.robot import festo
 from pamkin.robot.biped import PamRobot, thesis_robot
 from pamkin.human.rom import RangeOfMotion, load_rom
 from locations import DATA, EXAMPLES
@@ -1694,3 +1695,19 @@ def test_the_run_names_pams_out_of_reach_within_the_bone_limits(monkeypatch):
         "fails without the bone meshes too: the route's shape and the PAM's force-length curve"]
     ctx.validation = None
     assert report.bone_limit_lines(ctx, after) == []
+
+
+def test_resting_length_cap_bounds_the_fit():
+    """``[limits] max_resting_length_m``: the fit's resting length stays at or under the cap (a body short
+    enough for a rack), never under Festo's shortest; 0 leaves Festo's range."""
+    human = pamkin.gait2392()
+    pam = thesis_robot().design.pam(5)
+    seed = [np.array(p.location) for p in pam.points]
+    lmin, lmax = festo.nominal_length_range(40)
+    for cap, hi in ((0.0, lmax), (0.25, 0.25), (1e-4, lmin)):
+        cfg = RunConfig().replace({**FAST_FIT, "limits.max_resting_length_m": cap})
+        data = actuator_data(pam, human, load_rom("robot_thesis", "r"), cfg, 0.0125)
+        prob = ActuatorProblem(data, cfg, 40, seed, [np.array(cfg.region(5, p.name)) for p in pam.points])
+        assert (prob.lbx[-2], prob.ubx[-2]) == (lmin, hi)
+    sol = prob.solve(prob.initial_guess(seed, None, None), 1)
+    assert sol.rest_length <= lmin + 1e-6
