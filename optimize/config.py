@@ -252,7 +252,7 @@ class Separate:
 class Rack:
     """``[rack]``: the rack stage (needs [bone_rounds] for the bone meshes)."""
 
-    enabled: bool = key(False, "every PAM body hung on brackets along a bone of its route's end (routes and moment "
+    enabled: bool = key(True, "every PAM body hung on brackets along a bone of its route's end (routes and moment "
                                "arms unchanged), the layout chosen for all PAMs at once")
     gap_m: float = key(0.005, "least gap between two PAM bodies and between a PAM body and bone [m]", 0, 0.1)
     bracket_max_m: float = key(0.05, "farthest a rack bracket (anchor, guide pulley) may be from its bone [m]", 0, 0.2)

@@ -33,8 +33,11 @@ from pamkin.errors import DataFileError
 from pamkin.opensim.model_file import PathPoint
 from pamkin.robot import festo
 from pamkin.robot.biped import PamRobot, thesis_robot
+from pamkin.robot.rack import ANCHOR, GUIDE
 from pamkin.human.rom import RangeOfMotion, load_rom
 from locations import DATA, EXAMPLES
+
+RACK_POINTS = (ANCHOR, GUIDE)
 
 
 
@@ -261,12 +264,12 @@ def test_default_run_on_the_hip_group(tmp_path):
     for p in clear:                          # what the run calls clear is clear by the meshes themselves
         for pt in p.points:
             d = float(bones.body_closest(pt.body, np.array([pt.location]))[0][0])
-            assert 0.0 <= d <= 0.020, (p.name, pt.name, d)
+            assert 0.0 <= d <= (0.050 if pt.name in RACK_POINTS else 0.020), (p.name, pt.name, d)
     for p in design.pams:
         if p.id in cfg.actuators:            # the bracket balls are hard: no point farther than 18 mm
-            for pt in p.points:
+            for pt in p.points:              # (a rack's brackets: 50 mm)
                 d = float(bones.body_closest(pt.body, np.array([pt.location]))[0][0])
-                assert d <= 0.018 + 1e-6, (p.name, pt.name, d)
+                assert d <= (0.050 if pt.name in RACK_POINTS else 0.018) + 1e-6, (p.name, pt.name, d)
             if p not in clear:               # ... and what is not clear is named, with its numbers
                 assert any(line.startswith(f"{p.id} {p.name}: NOT clear") for line in s["bone_mesh_not_clear"])
     assert gait.feasible_frame_fraction(PamRobot(design, skel)) >= 0.9       # measured 1.0
@@ -1711,3 +1714,29 @@ def test_resting_length_cap_bounds_the_fit():
         assert (prob.lbx[-2], prob.ubx[-2]) == (lmin, hi)
     sol = prob.solve(prob.initial_guess(seed, None, None), 1)
     assert sol.rest_length <= lmin + 1e-6
+
+
+def test_a_merged_pam_is_fitted_to_the_summed_human_torque():
+    """A known assignment: one PAM replacing iliacus and psoas (merged) has, on every 1-D sweep and 2-D grid
+    sample, the target torque of the PAM replacing iliacus plus that of the PAM replacing psoas (each from
+    Gait2392's muscles at full activation, compared with OpenSim elsewhere), and it is a hip flexor torque."""
+    human = pamkin.gait2392()
+    rom = load_rom("robot_thesis", "r")
+    seed = load_design("v2_seed")
+    ili = seed.pam(26)
+    assert ili.human_muscles == ("iliacus_r",) and seed.pam(27).human_muscles == ("psoas_r",)
+    cfg = RunConfig().replace({**FAST_FIT, "samples.random": 0})
+
+    def objective(muscles):
+        pam = dataclasses.replace(ili, human_muscles=muscles, secondary_coordinates=("hip_adduction_r", "hip_rotation_r"))
+        return {label: (rows, torque) for _, rows, torque, _, label in actuator_data(pam, human, rom, cfg, 0.0125).objective}
+
+    a, b, merged = objective(("iliacus_r",)), objective(("psoas_r",)), objective(("iliacus_r", "psoas_r"))
+    assert set(merged) == set(a) and any(label.startswith("2-D") for label in merged)
+    for label, (rows, torque) in merged.items():
+        np.testing.assert_array_equal(rows, a[label][0])
+        np.testing.assert_allclose(torque, a[label][1] + b[label][1], rtol=1e-12, atol=1e-9)
+    sweep = merged["1-D hip_flexion_r"][1]
+    # both hip flexors from extension to mid flexion (Gait2392's paths turn them into weak extensors near the
+    # end of the robot's 110 deg), together over 80 N·m at their peak (88 N·m)
+    assert (sweep[: len(sweep) // 2] > 0).all() and sweep.max() > 80
