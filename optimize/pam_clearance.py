@@ -15,12 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pamkin.audit.assembly import body_radius
 from pamkin.audit.measure import CLEARANCE_TOLERANCE, GAIT_IK, gait_poses, random_poses
 from pamkin.errors import PamkinError, RangeWarning
 from pamkin.human.bones import body_pair_distance
-from pamkin.robot import festo
 from pamkin.robot.biped import PamRobot, placements
 from pamkin.robot.design import Design
+from pamkin.robot.rack import has_rack
 from pamkin.robot.pam_body import (
     pam_capsules,
     route_positions,
@@ -46,7 +47,7 @@ def pam_bodies(design, model, q: np.ndarray) -> list[Body]:
     out = []
     for pam, (place, pts, pam_len) in zip(design.pams, placements(design, model, q)):
         pieces = pam_capsules(pts, place.segment, pam_len + fit, place.side)
-        out.append(Body(pam.id, pieces, festo.outer_diameter(pam.diameter_mm) / 2, place.segment))
+        out.append(Body(pam.id, pieces, body_radius(pam.diameter_mm, pam.n_parallel), place.segment))
     return out
 
 
@@ -101,15 +102,18 @@ def choose_ends(design, model, rom, seed: int = 0, n_random: int = ENDS_RANDOM):
         if len(q_g):
             sets["gait"] = (model.kinematics.forward(q_g, warn_range=False), both.evaluate(q_g))
     # the default places (no pam_on, no pam_at) at every pose of both sets
-    default = Design(design.name, tuple(dataclasses.replace(p, pam_at=None, pam_on=None) for p in design.pams),
+    # (a PAM on a rack keeps its place: its body hangs on the rack, :mod:`pamkin.robot.rack`)
+    default = Design(design.name, tuple(p if has_rack(p) else dataclasses.replace(p, pam_at=None, pam_on=None)
+                                        for p in design.pams),
                      design.pressure_Pa, design.force_model, design.fitting_length_m, design.rom)
     options, places, on_one = [], [], []
     for pam, (place, pts, pam_len) in zip(default.pams, placements(default, model, np.vstack([q_r, q_g]))):
         places.append((place.segment, place.side))
         on_one.append(place.on_one_segment)
-        opts = segment_options(pts, pam, pam_len, design.fitting_length_m) if place.on_one_segment else []
+        opts = (segment_options(pts, pam, pam_len, design.fitting_length_m)
+                if place.on_one_segment and not has_rack(pam) else [])
         options.append(opts if places[-1] in opts else [places[-1]])
-    radius = [festo.outer_diameter(p.diameter_mm) / 2 for p in design.pams]
+    radius = [body_radius(p.diameter_mm, p.n_parallel) for p in design.pams]
     caps = {}
     for key, (kin, ps) in sets.items():
         for c in (range(2 * n) if key == "gait" else range(n)):

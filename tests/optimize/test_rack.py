@@ -143,14 +143,14 @@ def test_rack_config_section():
     from pamkin.optimize.config import RunConfig
 
     cfg = RunConfig()
-    assert not cfg.rack.enabled and cfg.rack.gap_m == 0.005 and cfg.rack.bracket_max_m == 0.05
+    assert cfg.rack.enabled and cfg.rack.gap_m == 0.005 and cfg.rack.bracket_max_m == 0.05     # on by default
     assert RunConfig().replace({"rack.enabled": True, "rack.angles": 8}).rack.angles == 8
     with pytest.raises(DataFileError, match="rack.angles"):
         RunConfig().replace({"rack.angles": 2})
 
 
 def test_the_pipeline_stage_racks_the_toy_pams(skel):
-    """The declared stage (last before the check, switched on by ``[rack] enabled``) on the two toy PAMs as a
+    """The declared stage (last before the check, on by default, ``[rack] enabled``) on the two toy PAMs as a
     run's results: both come back on racks on the tibia, and the report says so."""
     import io
     from types import SimpleNamespace
@@ -165,7 +165,9 @@ def test_the_pipeline_stage_racks_the_toy_pams(skel):
     assert names[-1] == "rack"
     on = RunConfig().replace({"rack.enabled": True, "rack.poses": 10, "rack.check_poses": 40, "rack.gait": False,
                               "rack.angles": 8})
-    assert STAGES[-1].enabled(on) and not STAGES[-1].enabled(RunConfig())
+    assert STAGES[-1].enabled(on) and STAGES[-1].enabled(RunConfig())
+    assert not STAGES[-1].enabled(RunConfig().replace({"rack.enabled": False}))
+    assert not STAGES[-1].enabled(RunConfig().replace({"bone_rounds.enabled": False}))     # needs the meshes
     bones, seed = _toy_pair(skel, rom="robot_thesis")
     results = [ActuatorResult(p.id, p.name, p, "Solve_Succeeded", True) for p in seed.pams]
     ctx = SimpleNamespace(cfg=on, seed_design=seed, human=skel, rom=load_rom(seed.rom, "r"), bones=bones,

@@ -230,3 +230,21 @@ def test_audit_names_a_segment_the_body_does_not_fit_on():
     assert row["mount_segment"] == "b->c" and row["on_one_segment"] and row["pam_on_not_possible"] == "a->b"
     assert "pam_on not possible (the PAM body does not fit on that segment with a constant tendon), the segment " \
            "that holds it best used: 1 toy 1 (a->b)" in scorecard_text(res)
+
+
+def test_choose_ends_keeps_a_racked_body_on_its_rack():
+    """The pair of the first test with PAM 1 hung on a rack whose body lies 10 mm beside PAM 2's at the top of
+    the thigh: the choice of ends leaves the racked PAM where its rack holds it (pam_on on the rack's piece,
+    no line for it) and separates the pair by moving PAM 2 to the bottom end of its segment."""
+    from pamkin.optimize.pam_clearance import choose_ends
+    from pamkin.robot.rack import ANCHOR, GUIDE, RackMount, rack_pam
+
+    mount = RackMount("origin", "femur_r", (0.02, -0.05, 0.03), (0.02, -0.36, 0.03))
+    racked = rack_pam(_pam(1, 0.0), mount)
+    des = Design("toy", (racked, _pam(2, 0.01)), rom="robot_thesis")
+    chosen, lines = choose_ends(des, pamkin.gait2392(), load_rom("robot_thesis", "r"), seed=0, n_random=20)
+    assert chosen.pam(1).pam_on == f"{ANCHOR}->{GUIDE}" and chosen.pam(1).pam_at == "origin"
+    assert chosen.pam(1).points == racked.points
+    assert not any("actuator 1 toy 1 anchored" in s for s in lines), lines
+    assert chosen.pam(2).pam_at == "insertion", lines
+    assert lines[-1].startswith("PAM ends: intersecting pairs at the run's check poses: same side 1 -> 0"), lines
