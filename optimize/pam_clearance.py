@@ -2,8 +2,8 @@
 PAM–PAM clearance pass.
 
 A PAM body is the part of its route at the anchored end of its mount segment (the segment that best holds
-the PAM with both fittings) for the PAM length plus both fittings, with Festo's assumed outer diameter
-(:func:`pamkin.robot.festo.outer_diameter`) — exactly what ``pamkin audit`` tests
+the PAM with both fittings) for the PAM length plus both fittings, with the body radius of its Festo size and
+parallel count (:func:`pamkin.audit.assembly.body_radius`) — exactly what ``pamkin audit`` tests
 (:func:`pamkin.robot.pam_body.placement`, :func:`pamkin.robot.pam_body.pam_capsules`).
 """
 
