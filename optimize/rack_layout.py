@@ -215,6 +215,8 @@ def conflicts(cands: list[Candidate], states: list, kin, gap: float = BODY_GAP_M
     in the host frame, else over the poses of every state in ``states``; ``mirrored`` = (state, mirror
     function) adds right-against-left pairs (a candidate against every mirrored one, its own included)."""
     C = len(cands)
+    if C == 0:
+        return np.zeros((0, 2), int)
     pam = np.array([c.pam for c in cands])
     rad = np.array([c.radius for c in cands])
     i, j = np.triu_indices(C, 1)
@@ -297,13 +299,31 @@ def _greedy(cands: list[Candidate], pairs: np.ndarray, ub: np.ndarray) -> dict[i
 @dataclass
 class RackReport:
     """What :func:`layout` did: the PAMs hung on racks ``{pam id: candidate}``, the ones left on their routes
-    (no candidate, or every candidate in conflict), the candidates and conflicts counted, the rounds."""
+    (no candidate, or every candidate in conflict), the candidates and conflicts counted, the rounds, and
+    per PAM left on its route why (``reasons``: {pam id: text}, :func:`why_left`)."""
 
     placed: dict
     unplaced: list[int]
     candidates: int
     conflicts: int
     rounds: int
+    reasons: dict = dataclasses.field(default_factory=dict)
+
+
+def why_left(counts: tuple[int, int, int, int]) -> str:
+    """Why a PAM found no rack, from its candidate counts: on its bones, of them clear of the other bones at
+    the stage's poses, of them clear of the bodies left on their routes, of them passing the check at more
+    poses (as far as it went)."""
+    on_bone, clear, free, checked = counts
+    if on_bone == 0:
+        return "no place on the bones of its route's ends (too long or too thick for their room)"
+    if clear == 0:
+        return f"{on_bone} places on its bones, none clear of the other bones at every pose"
+    if free == 0:
+        return f"{clear} places clear of bone, none clear of the bodies left on their routes"
+    if checked == 0:
+        return f"{free} places, none clear of the other bones at the check poses"
+    return f"{checked} places, each in conflict with a chosen rack"
 
 
 def mirror_candidate(c: Candidate) -> Candidate:
@@ -403,13 +423,15 @@ def layout(design, model, bones, q_random: np.ndarray, q_gait: np.ndarray, gap: 
     st, sg = kin.forward(q_random, warn_range=False), kin.forward(q_gait, warn_range=False)
     right = [b for b in bones.bodies if not b.endswith("_l")]
     moving = [k for k, p in enumerate(design.pams) if (movable is None or p.id in movable) and not has_rack(p)]
-    pool = []
+    pool, on_bone = [], {k: 0 for k in moving}
     for k in moving:
         for end in ("origin", "insertion"):
             c = candidates(k, design.pams[k], end, bones, design.fitting_length_m, angles=angles, gap=gap,
                            bracket_max=bracket_max)
+            on_bone[k] += len(c)
             c = keep_clear(c, bones, st, kin, gap, right)
             pool += keep_clear(c, bones, sg, kin, gap) if len(q_gait) else c
+    clear = {k: sum(c.pam == k for c in pool) for k in moving}
     if say:
         say(f"rack: {len(pool)} candidates for {len({c.pam for c in pool})} of {len(moving)} PAMs")
     states = [st, sg] if len(q_gait) else [st]
@@ -418,6 +440,7 @@ def layout(design, model, bones, q_random: np.ndarray, q_gait: np.ndarray, gap: 
     q_all = np.vstack([q_random, q_gait])
     fixed = [k for k in range(len(design.pams)) if k not in moving]
     pool, pairs = _drop_near(pool, pairs, design, model, q_all, fixed, gap)
+    free = {k: sum(c.pam == k for c in pool) for k in moving}
     pick, done = {}, 0
     for done in range(1, rounds + 1):
         pick = choose(pool, pairs, len(design.pams), time_limit)
@@ -436,4 +459,6 @@ def layout(design, model, bones, q_random: np.ndarray, q_gait: np.ndarray, gap: 
         new = new.replace_pam(rack_pam(design.pams[k], c.mount))
     placed = {design.pams[k].id: c for k, c in pick.items()}
     unplaced = [design.pams[k].id for k in moving if k not in pick]
-    return new, RackReport(placed, unplaced, len(pool), n_pairs, done)
+    remaining = {k: sum(c.pam == k for c in pool) for k in moving}
+    reasons = {design.pams[k].id: why_left((on_bone[k], clear[k], free[k], remaining[k])) for k in moving if k not in pick}
+    return new, RackReport(placed, unplaced, len(pool), n_pairs, done, reasons)

@@ -36,6 +36,7 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
     lines = [f"rack: {len(rep.placed)} of {len(ids)} PAMs hung on racks ({rep.candidates} candidates, "
              f"{rep.conflicts} conflicting pairs, {rep.rounds} rounds); left on their routes: "
              + (", ".join(f"{i} {design.pam(i).name}" for i in rep.unplaced) or "none")]
+    lines += [f"rack: actuator {i} {design.pam(i).name} left on its route: {rep.reasons[i]}" for i in rep.unplaced]
     lines += [f"rack: actuator {i} {design.pam(i).name} on {c.mount.host} at its {c.mount.end}, bracket "
               f"{1000 * c.bracket:.1f} mm" for i, c in sorted(rep.placed.items())]
     for line in lines:

@@ -207,3 +207,20 @@ def test_the_choice_by_hand():
     assert len(g) == 2 and not any(id(cands[a]) in chosen and id(cands[b]) in chosen for a, b in pairs)
     pick = choose(cands, np.array([[0, 2], [1, 3], [3, 3]]), 3)     # candidate 3 hits its mirror image
     assert set(pick) == {0, 1} and pick[0] is cands[1] and pick[1] is cands[2]
+
+
+def test_the_report_says_why_a_pam_is_left_on_its_route(skel):
+    """The toy pair with brackets of at most 10 mm: no place for either body on the toy tibia, and the report
+    says so per PAM; the reasons of the later filters by hand."""
+    from pamkin.optimize.rack_layout import why_left
+
+    bones, des = _toy_pair(skel)
+    q = _poses(skel, 10)
+    new, rep = layout(des, skel, bones, q, q[:0], bracket_max=0.010, time_limit=30)
+    assert rep.placed == {} and rep.unplaced == [1, 2] and new == des
+    assert rep.reasons == {i: "no place on the bones of its route's ends (too long or too thick for their room)"
+                           for i in (1, 2)}
+    assert why_left((30, 0, 0, 0)) == "30 places on its bones, none clear of the other bones at every pose"
+    assert why_left((30, 12, 0, 0)) == "12 places clear of bone, none clear of the bodies left on their routes"
+    assert why_left((30, 12, 5, 0)) == "5 places, none clear of the other bones at the check poses"
+    assert why_left((30, 12, 5, 3)) == "3 places, each in conflict with a chosen rack"
