@@ -7,10 +7,16 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from pamkin.audit.measure import GAIT_IK, gait_poses, random_poses
 from pamkin.optimize.context import RunContext
 from pamkin.optimize.rack_layout import layout
 from pamkin.optimize.results import ActuatorResult
+from pamkin.robot.biped import PamRobot
+from pamkin.robot.design import Design
+from pamkin.robot.pam_body import route_positions
+from pamkin.robot.rack import capstan_efficiency, rack_turns
 
 #: Random stream of the stage's poses (never the audit's).
 RACK_STREAM = 0xA0D8
@@ -37,9 +43,23 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
              f"{rep.conflicts} conflicting pairs, {rep.rounds} rounds); left on their routes: "
              + (", ".join(f"{i} {design.pam(i).name}" for i in rep.unplaced) or "none")]
     lines += [f"rack: actuator {i} {design.pam(i).name} left on its route: {rep.reasons[i]}" for i in rep.unplaced]
-    lines += [f"rack: actuator {i} {design.pam(i).name} on {c.mount.host} at its {c.mount.end}, bracket "
-              f"{1000 * c.bracket:.1f} mm" for i, c in sorted(rep.placed.items())]
+    q_all = np.vstack([q, qg]) if len(qg) else q
+    lines += [_placed_line(new, i, c, ctx, q_all, cfg.friction) for i, c in sorted(rep.placed.items())]
     for line in lines:
         say(line)
     ctx.rack = lines
     return [dataclasses.replace(r, pam=new.pam(r.id)) if r.id in ids else r for r in results]
+
+
+def _placed_line(design, pam_id: int, c, ctx: RunContext, q, mu: float) -> str:
+    """The report line of a racked PAM: host, end, bracket, the cable's turns over the poses ``q`` and the
+    capstan factor at coefficient ``mu`` at the largest of them."""
+    pam = design.pam(pam_id)
+    robot = PamRobot(Design(design.name, (pam,), design.pressure_Pa, design.force_model, design.fitting_length_m,
+                            design.rom), ctx.human, sides=("r",))
+    guide, at_end = rack_turns(pam, route_positions(robot.paths, ctx.human.kinematics.forward(q, warn_range=False), 0))
+    worst = guide + float(at_end.max())
+    return (f"rack: actuator {pam_id} {pam.name} on {c.mount.host} at its {c.mount.end}, bracket "
+            f"{1000 * c.bracket:.1f} mm; cable turns {np.degrees(guide):.0f} deg at the guide and up to "
+            f"{np.degrees(at_end.max()):.0f} deg at the route's end: capstan factor "
+            f"{float(capstan_efficiency(worst, mu)):.3f} at mu = {mu:g} (not in the torque figures)")

@@ -12,8 +12,8 @@ the pose.
 
 The cable turns twice on the host: at the guide pulley and at the route's end point. With pulleys on ball
 bearings the loss is small; a plain eyelet would cost the capstan factor ``exp(−μ θ)`` on the turn angle θ
-(:func:`capstan_efficiency`; the rack optimiser reports the turn angles and the efficiencies at the
-coefficient it assumes).
+(:func:`capstan_efficiency`; the rack stage reports both turn angles (:func:`rack_turns`) and the capstan
+factor at the coefficient ``[rack] friction`` it assumes; the torque figures do not include it).
 
 Design-file form: the rack is two ordinary route points on the host (named ``rack.anchor`` and ``rack.guide``)
 with ``pam_on: rack.anchor->rack.guide`` (``rack.guide->rack.anchor`` at the insertion end) and ``pam_at``
@@ -31,7 +31,7 @@ import numpy as np
 from pamkin.opensim.model_file import PathPoint
 from pamkin.robot.design import Pam
 
-__all__ = ["ANCHOR", "GUIDE", "RackMount", "capstan_efficiency", "has_rack", "rack_pam", "route_end",
+__all__ = ["ANCHOR", "GUIDE", "RackMount", "capstan_efficiency", "has_rack", "rack_pam", "rack_turns", "route_end",
            "turn_angle"]
 
 #: Names of the two rack points on a route.
@@ -99,6 +99,16 @@ def turn_angle(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     v = np.asarray(c, float) - np.asarray(b, float)
     cos = np.sum(u * v, axis=-1) / (np.linalg.norm(u, axis=-1) * np.linalg.norm(v, axis=-1))
     return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
+def rack_turns(pam: Pam, pts: np.ndarray) -> tuple[float, np.ndarray]:
+    """Angles [rad] the cable of a racked ``pam`` turns: at the guide pulley (fixed in the host: one number) and
+    at the route's end point (S,), from its route point positions ``pts`` (S, P, 3), e.g.
+    :func:`pamkin.robot.pam_body.route_positions`. Raises ValueError for a PAM without a rack."""
+    if not has_rack(pam):
+        raise ValueError(f"PAM {pam.id} ({pam.name}) hangs on no rack")
+    P = pts if pam.points[0].name == ANCHOR else pts[:, ::-1]
+    return float(turn_angle(P[0, 0], P[0, 1], P[0, 2])), turn_angle(P[:, 1], P[:, 2], P[:, 3])
 
 
 def capstan_efficiency(angle, mu: float) -> np.ndarray:

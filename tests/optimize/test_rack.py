@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
@@ -175,6 +176,13 @@ def test_the_pipeline_stage_racks_the_toy_pams(skel):
     out = stage.run(ctx, results)
     assert all(has_rack(r.pam) for r in out)
     assert ctx.rack[0].startswith("rack: 2 of 2 PAMs hung on racks") and "left on their routes: none" in ctx.rack[0]
+    for line, r in zip(ctx.rack[1:], out):
+        m = re.fullmatch(rf"rack: actuator {r.id} toy {r.id} on tibia_r at its origin, bracket [0-9.]+ mm; cable "
+                         r"turns ([0-9]+) deg at the guide and up to ([0-9]+) deg at the route's end: capstan factor "
+                         r"([0-9.]+) at mu = 0.03 \(not in the torque figures\)", line)
+        assert m, line
+        turns = np.radians(int(m[1]) + int(m[2]))
+        assert float(m[3]) == pytest.approx(np.exp(-0.03 * turns), abs=2e-3)       # capstan, by hand
 
 
 def test_only_the_movable_pams_move_and_the_others_are_obstacles(skel):
@@ -224,3 +232,24 @@ def test_the_report_says_why_a_pam_is_left_on_its_route(skel):
     assert why_left((30, 12, 0, 0)) == "12 places clear of bone, none clear of the bodies left on their routes"
     assert why_left((30, 12, 5, 0)) == "5 places, none clear of the other bones at the check poses"
     assert why_left((30, 12, 5, 3)) == "3 places, each in conflict with a chosen rack"
+
+
+def test_rack_turns_by_hand():
+    """A rack at the origin: anchor (0,0,0) → guide (1,0,0) → route end (1,1,0) → next point: the cable turns
+    90° at the guide and, at the route end, 90° (next (2,1,0)) or 45° (next (2,2,0)); the same route with the
+    rack at its insertion (points reversed) gives the same angles; a PAM without a rack is refused."""
+    from pamkin.robot.rack import rack_turns
+
+    mount = RackMount("origin", "tibia_r", (0.0, 0.0, 0.0), (1.0, 0.0, 0.0))
+    base = load_design("thesis").pam(16)
+    pam = dataclasses.replace(base, points=(PathPoint("g", "tibia_r", (1.0, 1.0, 0.0)),
+                                            PathPoint("n", "calcn_r", (2.0, 1.0, 0.0))), rollers=(), pam_on=None)
+    racked = rack_pam(pam, mount)
+    pts = np.array([[[0, 0, 0], [1, 0, 0], [1, 1, 0], [2, 1, 0]], [[0, 0, 0], [1, 0, 0], [1, 1, 0], [2, 2, 0]]], float)
+    guide, end = rack_turns(racked, pts)
+    assert guide == pytest.approx(math.pi / 2) and end == pytest.approx([math.pi / 2, math.pi / 4])
+    at_insertion = dataclasses.replace(racked, points=racked.points[::-1])
+    g2, e2 = rack_turns(at_insertion, pts[:, ::-1])
+    assert g2 == pytest.approx(guide) and e2 == pytest.approx(end)
+    with pytest.raises(ValueError, match="hangs on no rack"):
+        rack_turns(pam, pts)
