@@ -263,8 +263,9 @@ class Rack:
     gait: bool = key(True, "check the layout at the poses of the audit's walking trial too (left against right)")
     gait_stride: int = key(6, "every n-th frame of the walking trial", 1, 1000)
     time_limit_s: float = key(120.0, "time limit of the layout's integer program [s]", 1, 3600)
-    friction: float = key(0.03, "capstan coefficient assumed for the report of the cable's turns on a rack (guide "
-                                "pulley and route end on ball bearings; not in the torque figures)", 0, 1.0)
+    friction: float = key(0.03, "capstan coefficient of the cable's turns on a rack (guide pulley and route end on "
+                                "ball bearings): the PAM's force x exp(-friction x largest turn), its cable_efficiency",
+                          0, 1.0)
 
 
 #: Section name -> its dataclass, in the order of the reference page.

@@ -83,7 +83,8 @@ def summarize(seed: Design, new: Design, results, cfg, progress=None) -> dict:
         diff = 0.0
         for label, q in r.sample_q.items():
             c = label.split(" x ")[-1].split()[-1]
-            tn = after.evaluate(q).torques[:, k, skel.coordinates.index(c)]
+            # (the fit's torques are before any rack's cable efficiency, which the numpy pipeline applies)
+            tn = after.evaluate(q).torques[:, k, skel.coordinates.index(c)] / after.efficiency[k]
             diff = max(diff, float(np.max(np.abs(tn - r.torque_samples[label]))))
         rows.append({
             "id": r.id, "name": r.name, "diameter_mm": pam.diameter_mm, "n_parallel": pam.n_parallel,

@@ -44,22 +44,24 @@ def run(ctx: RunContext, results: list[ActuatorResult]) -> list[ActuatorResult]:
              + (", ".join(f"{i} {design.pam(i).name}" for i in rep.unplaced) or "none")]
     lines += [f"rack: actuator {i} {design.pam(i).name} left on its route: {rep.reasons[i]}" for i in rep.unplaced]
     q_all = np.vstack([q, qg]) if len(qg) else q
-    lines += [_placed_line(new, i, c, ctx, q_all, cfg.friction) for i, c in sorted(rep.placed.items())]
+    for i, c in sorted(rep.placed.items()):
+        guide, at_end = _turns(new, i, ctx, q_all)
+        eta = float(capstan_efficiency(guide + at_end.max(), cfg.friction))
+        new = new.replace_pam(dataclasses.replace(new.pam(i), cable_efficiency=eta))
+        lines.append(f"rack: actuator {i} {design.pam(i).name} on {c.mount.host} at its {c.mount.end}, bracket "
+                     f"{1000 * c.bracket:.1f} mm; cable turns {np.degrees(guide):.0f} deg at the guide and up to "
+                     f"{np.degrees(at_end.max()):.0f} deg at the route's end: capstan factor {eta:.3f} at mu = "
+                     f"{cfg.friction:g}, in its force (cable_efficiency)")
     for line in lines:
         say(line)
     ctx.rack = lines
     return [dataclasses.replace(r, pam=new.pam(r.id)) if r.id in ids else r for r in results]
 
 
-def _placed_line(design, pam_id: int, c, ctx: RunContext, q, mu: float) -> str:
-    """The report line of a racked PAM: host, end, bracket, the cable's turns over the poses ``q`` and the
-    capstan factor at coefficient ``mu`` at the largest of them."""
+def _turns(design, pam_id: int, ctx: RunContext, q) -> tuple[float, np.ndarray]:
+    """The cable's turn [rad] at the rack's guide pulley and at the route's end (per pose of ``q``) of a racked
+    PAM (:func:`pamkin.robot.rack.rack_turns`)."""
     pam = design.pam(pam_id)
     robot = PamRobot(Design(design.name, (pam,), design.pressure_Pa, design.force_model, design.fitting_length_m,
                             design.rom), ctx.human, sides=("r",))
-    guide, at_end = rack_turns(pam, route_positions(robot.paths, ctx.human.kinematics.forward(q, warn_range=False), 0))
-    worst = guide + float(at_end.max())
-    return (f"rack: actuator {pam_id} {pam.name} on {c.mount.host} at its {c.mount.end}, bracket "
-            f"{1000 * c.bracket:.1f} mm; cable turns {np.degrees(guide):.0f} deg at the guide and up to "
-            f"{np.degrees(at_end.max()):.0f} deg at the route's end: capstan factor "
-            f"{float(capstan_efficiency(worst, mu)):.3f} at mu = {mu:g} (not in the torque figures)")
+    return rack_turns(pam, route_positions(robot.paths, ctx.human.kinematics.forward(q, warn_range=False), 0))

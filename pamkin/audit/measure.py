@@ -521,6 +521,7 @@ def audit_design(design: str | os.PathLike | Design | None = None, *, options: A
     for row, p in zip(rows, des.pams):
         row["mass_kg"] = pam_unit_mass(p) * p.n_parallel
         row["transmission"] = int(p.transmission)
+        row["cable_efficiency"] = float(p.cable_efficiency)
 
     # ---- gait capability
     gait_frac, gait_limiting = None, None

@@ -133,6 +133,7 @@ def _pam_entry(pam, place, pts: np.ndarray, st, k: int, fit: float) -> dict:
         "transmission": int(pam.transmission),
         "pulley_block": None if pam.transmission == 1 else f"{pam.transmission}:1 ({pam.transmission - 1} pulley"
                                                           f"{'s' if pam.transmission > 2 else ''} in a frame)",
+        "cable_efficiency": round(float(pam.cable_efficiency), 4),
         "mount_segment": names[place.segment], "on_one_segment": bool(place.on_one_segment),
         "pam_at": place.side if place.on_one_segment else None,
         "cable": _cable(pam, place, pts, fit),

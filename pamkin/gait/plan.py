@@ -12,7 +12,8 @@ the 27-PAM designs) sit on the skeleton in the IK posture; pamkin's path engine 
 strain and its moment arms about the 17 non-pelvis coordinates. The Festo v3 force is affine in
 pressure at a fixed strain, clipped at zero::
 
-    F_k(P) = max(a_k + b_k·P, 0)          [N; the route's tension: n_parallel included, ÷ transmission; b_k > 0]
+    F_k(P) = max(a_k + b_k·P, 0)          [N; the route's tension: n_parallel and cable efficiency included,
+                                           ÷ transmission; b_k > 0]
 
 (a_k, b_k from :func:`pamkin.robot.festo.force` at two pressures, never re-derived). Per frame the
 pressures P_k ∈ [0, P_max] solve a lexicographic pair of convex QPs in x_k = P_k/P_max:
@@ -270,7 +271,7 @@ def load_trial(model, ik: str | Path = DEFAULT_IK, id: str | Path = DEFAULT_ID, 
 
 
 def _pam_forces(robot: PamRobot, strain: np.ndarray, pressure: float | np.ndarray) -> np.ndarray:
-    """Route tensions [N] (n_parallel included, ÷ transmission) of every PAM column (festo.force) at
+    """Route tensions [N] (n_parallel and cable efficiency included, ÷ transmission) of every PAM column (festo.force) at
     ``pressure`` [Pa], a number or (N, n_pams) per frame and PAM."""
     F = np.zeros_like(strain)
     P = np.asarray(pressure, dtype=float)
@@ -278,7 +279,7 @@ def _pam_forces(robot: PamRobot, strain: np.ndarray, pressure: float | np.ndarra
         cols = robot.diameter == d
         F[:, cols] = festo.force(strain[:, cols], robot.rest[cols], P[:, cols] if P.ndim == 2 else P, int(d),
                                  model=robot.design.force_model)
-    return F * robot.n_parallel / robot.transmission
+    return F * robot.n_parallel * robot.efficiency / robot.transmission
 
 
 def force_coefficients(robot: PamRobot, strain: np.ndarray, p_max: float = P_MAX_DEFAULT

@@ -44,7 +44,7 @@ class PamState:
         lengths: Route lengths (N, n) [m].
         pam_lengths: Length of the PAM itself, (route − tendon)/transmission − fittings (N, n) [m].
         strain: Contraction ε = (rest − pam length)/rest (N, n) [-], positive contracted.
-        forces: Tension of the route: the PAMs' force × n_parallel ÷ transmission (N, n) [N].
+        forces: Tension of the route: the PAMs' force × n_parallel × cable efficiency ÷ transmission (N, n) [N].
         unit_forces: Force of one PAM (N, n) [N] (what Festo's rating limits).
         moment_arms: (N, n, n_coordinates) [m].
         in_range: (N, n) True where −pretension limit ≤ ε ≤ kmax (outside: a "dead zone").
@@ -119,6 +119,8 @@ class PamRobot:
         self.diameter = np.array([p.diameter_mm for p in self.pams])
         self.n_parallel = np.array([p.n_parallel for p in self.pams])
         self.transmission = np.array([p.transmission for p in self.pams])
+        #: Share of each PAM's force reaching its route (:attr:`pamkin.robot.design.Pam.cable_efficiency`).
+        self.efficiency = np.array([p.cable_efficiency for p in self.pams], float)
 
     @property
     def coordinates(self) -> list[str]:
@@ -153,7 +155,7 @@ class PamRobot:
             F[:, cols] = festo.force(strain[:, cols], self.rest[cols], P, int(d), model=self.design.force_model)
             km = festo.kmax(self.rest[cols], int(d), model=self.design.force_model)
             in_range[:, cols] = (strain[:, cols] >= -festo.max_pretension(int(d))) & (strain[:, cols] <= km)
-        return PamState(L, pam_len, strain, F * self.n_parallel / self.transmission, R, in_range, F)
+        return PamState(L, pam_len, strain, F * self.n_parallel * self.efficiency / self.transmission, R, in_range, F)
 
     #: Central-difference step of the moment arms of routes with rollers [rad or m].
     WRAP_STEP = 1e-6

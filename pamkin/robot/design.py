@@ -113,6 +113,9 @@ class Pam:
             holds it best (:func:`pamkin.robot.pam_body.placement`). Where the body sits never changes a torque.
         rollers: Cable guides on its route's segments (:mod:`pamkin.robot.rollers`; at most one per segment; the
             PAM body never sits on a segment with a roller).
+        cable_efficiency: Share of the PAM's force that reaches the route, in (0, 1]: the capstan factor of the
+            cable's turns on a rack (:mod:`pamkin.robot.rack`; 1: none modelled). Multiplies the route's tension
+            and so every torque.
     """
 
     id: int
@@ -130,6 +133,7 @@ class Pam:
     pam_at: str | None = None
     pam_on: str | None = None
     rollers: tuple[Roller, ...] = ()
+    cable_efficiency: float = 1.0
 
     @property
     def key(self) -> str:
@@ -191,6 +195,7 @@ class Design:
             **({"pam_at": p.pam_at} if p.pam_at is not None else {}),
             **({"pam_on": p.pam_on} if p.pam_on is not None else {}),
             **({"rollers": [r.to_dict() for r in p.rollers]} if p.rollers else {}),
+            **({"cable_efficiency": float(p.cable_efficiency)} if p.cable_efficiency != 1.0 else {}),
             "notes": p.notes,
             "points": [_point_to_dict(pt) for pt in p.points],
         } for p in self.pams]
@@ -248,12 +253,13 @@ def _fail(path: str, msg: str) -> DataFileError:
 
 
 #: Fields of a PAM entry: required, then optional.
-_OPTIONAL = ("secondary_coordinates", "n_parallel", "transmission", "pam_at", "pam_on", "rollers", "notes")
+_OPTIONAL = ("secondary_coordinates", "n_parallel", "transmission", "pam_at", "pam_on", "rollers", "notes",
+             "cable_efficiency")
 #: Top-level fields of a design file.
 _TOP = ("name", "description", "rom", "force_model", "pressure_Pa", "fitting_length_m", "pams", "notes")
 #: Physical bounds of a design's numbers (SI): a value outside is a typo or a unit mix-up, refused.
 BOUNDS = {"resting_length_m": (0.01, 2.0), "tendon_length_m": (-2.0, 2.0), "pressure_Pa": (1e5, 8e5),
-          "fitting_length_m": (0.0, 0.1), "point_distance_m": 1.0}
+          "fitting_length_m": (0.0, 0.1), "cable_efficiency": (0.0, 1.0), "point_distance_m": 1.0}
 
 
 def _unknown(keys, known, path: str, where: str) -> None:
@@ -362,8 +368,9 @@ def _pam_from_dict(d, k: int, path: str, bodies, coordinates, muscles, seen: set
     pam_at, pam_on, rollers = _mount_fields(d, points, path, where, bodies)
     if not isinstance(d.get("notes", ""), str):
         raise _fail(path, f"{where}notes must be text")
+    efficiency = _number(d, "cable_efficiency", path, where, default=1.0)
     return Pam(pid, d["name"], human, coords[0], coords[1:], diameter, npar, rest, tendon, points,
-               d.get("notes", ""), ratio, pam_at, pam_on, rollers)
+               d.get("notes", ""), ratio, pam_at, pam_on, rollers, efficiency)
 
 
 def _mount_fields(d: dict, points, path: str, where: str, bodies):
@@ -529,6 +536,8 @@ FIELD_DOCS = {
     "pams[].pam_at": ("name", f"the end of its mount segment the PAM sits at, one of {PAM_AT}"),
     "pams[].pam_on": ("name", "its mount segment 'p3->p4' (a segment of its route, without a roller)"),
     "pams[].rollers": ("list", "cable guides on bone, at most one per segment (pamkin.robot.rollers)"),
+    "pams[].cable_efficiency": ("number", "share of the PAM's force reaching the route: the capstan factor of "
+                                          "its cable's turns on a rack (default 1)"),
     "pams[].notes": ("text", "free text"),
     "pams[].points": ("list", "the route, origin first, at least 2 distinct names: {type, name, body, location} "
                               "with the location [m] in the body's frame"),
@@ -539,7 +548,8 @@ def design_schema_markdown() -> str:
     """The design file's schema as a Markdown table: field, type, allowed values (from :data:`BOUNDS` and the
     checks of :func:`design_from_dict`) and meaning."""
     rng = {"resting_length_m": BOUNDS["resting_length_m"], "tendon_length_m": BOUNDS["tendon_length_m"],
-           "pressure_Pa": BOUNDS["pressure_Pa"], "fitting_length_m": BOUNDS["fitting_length_m"]}
+           "pressure_Pa": BOUNDS["pressure_Pa"], "fitting_length_m": BOUNDS["fitting_length_m"],
+           "cable_efficiency": BOUNDS["cable_efficiency"]}
     rows = ["| field | type | range | meaning |", "|---|---|---|---|"]
     for name, (kind, doc) in FIELD_DOCS.items():
         key = name.rpartition(".")[2]

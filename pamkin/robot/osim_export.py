@@ -31,7 +31,7 @@ What is written:
   ``WrapObjectSet`` and a ``PathWrap`` over its segment's two points; OpenSim's wrapped lengths equal
   pamkin's (tested).
 * ``optimal_force`` = the PAM's maximum force at 620 kPa, F620(l0) (:func:`pamkin.robot.festo.f620`,
-  the v3 model's isometric force at zero contraction) × ``n_parallel`` ÷ the transmission (a k:1
+  the v3 model's isometric force at zero contraction) × ``n_parallel`` × its cable efficiency ÷ the transmission (a k:1
   block divides the route's tension by k, :mod:`pamkin.robot.design`); ``min_control`` 0,
   ``max_control`` 1. OpenSim's PathActuator tension is control × optimal_force, independent
   of length: a linear stand-in for the PAM, whose real force falls with contraction
@@ -205,9 +205,10 @@ def coordinate_range(coord: Coordinate, rom: RangeOfMotion | None) -> tuple[floa
 
 
 def pam_optimal_force(pam: Pam) -> float:
-    """``optimal_force`` written for a PAM: F620(resting length, diameter) × n_parallel ÷ transmission [N]
-    (the route's tension)."""
-    return float(festo.f620(pam.resting_length_m, pam.diameter_mm)) * pam.n_parallel / pam.transmission
+    """``optimal_force`` written for a PAM: F620(resting length, diameter) × n_parallel × cable efficiency ÷
+    transmission [N] (the route's tension)."""
+    return (float(festo.f620(pam.resting_length_m, pam.diameter_mm)) * pam.n_parallel * pam.cable_efficiency
+            / pam.transmission)
 
 
 # --------------------------------------------------------------------------- elements

@@ -12,8 +12,11 @@ the pose.
 
 The cable turns twice on the host: at the guide pulley and at the route's end point. With pulleys on ball
 bearings the loss is small; a plain eyelet would cost the capstan factor ``exp(−μ θ)`` on the turn angle θ
-(:func:`capstan_efficiency`; the rack stage reports both turn angles (:func:`rack_turns`) and the capstan
-factor at the coefficient ``[rack] friction`` it assumes; the torque figures do not include it).
+(:func:`capstan_efficiency`). The rack stage measures both turn angles (:func:`rack_turns`: the guide's is
+fixed, the route end's changes with the pose) and sets the PAM's ``cable_efficiency`` to the capstan factor of
+their largest sum over its poses at the coefficient it assumes (``[rack] friction``): the route's tension, and so
+every torque figure, is the PAM's force times that factor — a bound for a PAM pulling (shortening); while it is
+stretched, friction adds to the tension instead (not modelled).
 
 Design-file form: the rack is two ordinary route points on the host (named ``rack.anchor`` and ``rack.guide``)
 with ``pam_on: rack.anchor->rack.guide`` (``rack.guide->rack.anchor`` at the insertion end) and ``pam_at``

@@ -4,7 +4,7 @@ dynamics.
 Each PAM route is a tendon named after its column (``pam01_r`` ...). At every step :meth:`PamDrive.apply` takes
 the tendons' current lengths (``ten_length``), computes each route's tension T with
 :func:`pamkin.robot.festo.force` (the design's force model; PAM length = (route − tendon)/transmission −
-fittings, as :meth:`pamkin.robot.biped.PamRobot.evaluate`; × parallel count ÷ transmission) at the current
+fittings, as :meth:`pamkin.robot.biped.PamRobot.evaluate`; × parallel count × cable efficiency ÷ transmission) at the current
 pressure, and applies the generalized forces −Jᵀ·T (J = MuJoCo's tendon Jacobian ``ten_J``) gathered onto each
 independent coordinate's joint: τ_c = −Σ_j (Jᵀ·T)_j ∂qpos_j/∂q_c, through the joints tied to it (knee
 translations, moving path points). About a coordinate the torque is T × moment arm, pamkin's PAM torque. Applying
@@ -89,7 +89,7 @@ class PamDrive:
         self._law = (festo.force_law(robot.rest, robot.diameter, kmax=self._kmax)
                      if festo.canonical_model(model_name) == "v3" else None)
         self._trans = [(np.nonzero(robot.transmission == k)[0], int(k)) for k in np.unique(robot.transmission)]
-        self._scale = robot.n_parallel / robot.transmission
+        self._scale = robot.n_parallel * robot.efficiency / robot.transmission
 
     def tension(self, lengths: np.ndarray, pressure: np.ndarray) -> np.ndarray:
         """Route tensions (..., n) [N] at route lengths (n,) [m] and pressures (..., n) [Pa] (several pressure rows

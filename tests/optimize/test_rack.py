@@ -179,10 +179,18 @@ def test_the_pipeline_stage_racks_the_toy_pams(skel):
     for line, r in zip(ctx.rack[1:], out):
         m = re.fullmatch(rf"rack: actuator {r.id} toy {r.id} on tibia_r at its origin, bracket [0-9.]+ mm; cable "
                          r"turns ([0-9]+) deg at the guide and up to ([0-9]+) deg at the route's end: capstan factor "
-                         r"([0-9.]+) at mu = 0.03 \(not in the torque figures\)", line)
+                         r"([0-9.]+) at mu = 0.03, in its force \(cable_efficiency\)", line)
         assert m, line
         turns = np.radians(int(m[1]) + int(m[2]))
         assert float(m[3]) == pytest.approx(np.exp(-0.03 * turns), abs=2e-3)       # capstan, by hand
+        assert r.pam.cable_efficiency == pytest.approx(float(m[3]), abs=1e-3) and r.pam.cable_efficiency < 1
+    # the route's tension (and so every torque) is the PAM's force times it
+    q = _poses(skel, 5)
+    plain = PamRobot(Design("p", tuple(dataclasses.replace(r.pam, cable_efficiency=1.0) for r in out)), skel,
+                     sides=("r",)).evaluate(q)
+    with_loss = PamRobot(Design("f", tuple(r.pam for r in out)), skel, sides=("r",)).evaluate(q)
+    np.testing.assert_allclose(with_loss.torques, plain.torques * np.array([r.pam.cable_efficiency for r in out])
+                               [None, :, None], rtol=1e-12, atol=1e-12)
 
 
 def test_only_the_movable_pams_move_and_the_others_are_obstacles(skel):

@@ -34,6 +34,10 @@ def _pam0(**changes) -> dict:
     (_pam0(transmision=2), r"pams\[0\] \(id 1, 'Erector Spinae'\): unknown field 'transmision' \(did you mean "
                            r"'transmission'\?\)"),
     (_pam0(id="abc"), r"id must be an integer, is 'abc'"),
+    (_pam0(cable_efficiency=1.2), r"pams\[0\] \(id 1, 'Erector Spinae'\): cable_efficiency must lie in \(0, 1\], "
+                                  r"is 1.2"),
+    (_pam0(cable_efficiency=0.0), r"cable_efficiency must lie in \(0, 1\], is 0.0"),
+    (_pam0(cable_efficiency="0.9"), r"cable_efficiency must be a finite number, is '0.9'"),
     (_pam0(id=None), r"id must be an integer, is None"),
     (_pam0(n_parallel=1.7), r"n_parallel must be one of \(1, 2, 3\), is 1.7"),
     (_pam0(n_parallel="2"), r"n_parallel must be one of \(1, 2, 3\), is '2'"),
@@ -109,3 +113,16 @@ def test_mutated_designs_load_or_are_refused_by_name(mutations):
         design_from_dict(data, "mutated.yaml")
     except DataFileError as e:
         assert str(e).startswith("mutated.yaml: ")
+
+
+def test_cable_efficiency_round_trip(tmp_path):
+    """``cable_efficiency`` is written only where it is not 1 and read back exactly."""
+    from pamkin.robot.design import save_design
+
+    d = _pam0(cable_efficiency=0.875)
+    des = design_from_dict(d, "d.yaml")
+    assert des.pams[0].cable_efficiency == 0.875 and des.pams[1].cable_efficiency == 1.0
+    again = load_design(save_design(des, tmp_path / "again.yaml"))
+    assert again.pams[0].cable_efficiency == 0.875
+    out = again.to_dict()["pams"]
+    assert out[0]["cable_efficiency"] == 0.875 and "cable_efficiency" not in out[1]
