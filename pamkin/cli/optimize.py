@@ -165,7 +165,9 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     except InfeasibleError as e:
         if audit is not None:
             audit.close()
-        print(f"pamkin optimize: {e}\nno design file was written; see {out}", file=sys.stderr)
+        applied = f"; nothing was written to {args.apply}" if args.apply else ""
+        print(f"pamkin optimize: {e}\nthe run folder {out} holds the design with these actuators as their solver "
+              f"left them (design.yaml, log.txt, summary.json){applied}", file=sys.stderr)
         return 3
     except BaseException:
         if audit is not None:
