@@ -36,6 +36,7 @@ from pamkin.optimize.results import (
     ActuatorResult,
     InfeasibleError,
     bone_line,
+    capped_lines,
     check_results,
 )
 from pamkin.optimize.samples import actuator_data
@@ -228,6 +229,9 @@ def run(cfg: RunConfig, out_dir: Path, apply: str | os.PathLike | None = None, s
     log.extend(ctx.separation)
     log.extend(ctx.rack)
     log.extend(f"fit limits: {line}" for line in summary.get("fit_limits_and_bone", []))
+    for line in capped_lines(results):
+        print(line, file=stream, flush=True)
+        log.append(line)
     log.append(f"total {summary['total_seconds']} s (solves {solve_seconds:.1f} s)")
     write_file(out_dir / "log.txt", "\n".join(log) + "\n")
     try:

@@ -1740,3 +1740,25 @@ def test_a_merged_pam_is_fitted_to_the_summed_human_torque():
     # both hip flexors from extension to mid flexion (Gait2392's paths turn them into weak extensors near the
     # end of the robot's 110 deg), together over 80 N·m at their peak (88 N·m)
     assert (sweep[: len(sweep) // 2] > 0).all() and sweep.max() > 80
+
+
+def test_a_solve_stopped_at_the_cap_within_every_constraint_is_kept():
+    """How far IPOPT gets within its CPU-time cap depends on the machine's load: a result stopped there whose
+    every constraint holds (within the feasibility tolerance) is a feasible design, kept and named; one stopped
+    there with a violated constraint, or one that failed otherwise, makes the run infeasible."""
+    from pamkin.optimize.problem import FEASIBILITY_TOL
+    from pamkin.optimize.results import capped_lines, check_results
+
+    def result(status, violation):
+        r = _fake_result(23, {})
+        r.status, r.success, r.violations = status, False, {"1 mm error of point 7 <= sensitivity limit": violation}
+        return r
+
+    ok = result("Maximum_CpuTime_Exceeded", 0.5 * FEASIBILITY_TOL)
+    check_results([ok, _fake_result(22, {})])
+    assert capped_lines([ok]) == ["actuator 23 Extensor Hallucis Longus: its solve stopped at the solver's cap "
+                                  "(Maximum_CpuTime_Exceeded) within every constraint: kept, not converged"]
+    for bad in (result("Maximum_CpuTime_Exceeded", 2.29e-4), result("Infeasible_Problem_Detected", 0.0)):
+        with pytest.raises(InfeasibleError, match="actuator 23 Extensor Hallucis Longus"):
+            check_results([bad])
+        assert capped_lines([bad]) == []
