@@ -64,7 +64,7 @@ def add_parsers(sub) -> None:
                     "the fewest intersecting PAM pairs where its route allows more than one; then every PAM body "
                     "that fits is hung on a rack (brackets and a guide pulley on a bone at one end of its route, "
                     "routes and torques unchanged; all bodies placed at once, 5 mm from each other and from bone "
-                    "at every checked pose; [rack]); about 10 minutes "
+                    "at every checked pose; [rack]); about 18 minutes "
                     "on 2 cores. "
                     "Every actuator still failing an audit fit limit on the validation poses is named "
                     "('fit limits:') with its errors beside those of its fit without the bone meshes. "
