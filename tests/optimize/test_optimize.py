@@ -231,7 +231,7 @@ def test_config_regions(tmp_path):
 def test_default_run_on_the_hip_group(tmp_path):
     """The default run (v2: v2 seed with the pulley routes of 28 and 29, multi-joint training poses, rated
     force, sensitivity bound, bone meshes, held-out limit check, a 60-unit budget, the walking check) on the
-    six hip actuators 24-29 (about a minute and a half; the whole default run, about 10 minutes, is
+    six hip actuators 24-29 (about a minute and a half; the whole default run, about 18 minutes, is
     measured by benchmarks/bench_optimize.py). Checked independently of the optimiser: PAM units and
     Festo's ratings by the design file and pamkin.robot.festo, bone distances by the meshes, walking by the
     gait pressure plan."""
