@@ -273,6 +273,7 @@ def test_bone_mesh_run_is_clear_on_held_out_poses(tmp_path, capsys):
     from pamkin.audit.measure import random_poses
     from pamkin.cli import main
     from pamkin.robot.design import load_design
+    from pamkin.robot.rack import ANCHOR, GUIDE
     from pamkin.errors import RangeWarning
     from pamkin.robot.biped import robot_skeleton
     from pamkin.human.rom import load_rom
@@ -286,9 +287,9 @@ def test_bone_mesh_run_is_clear_on_held_out_poses(tmp_path, capsys):
     skel = robot_skeleton()
     pam = load_design(out / "design.yaml", bodies=skel.bodies, coordinates=skel.coordinates).pam(10)
     bones = BoneSet(skel)
-    for pt in pam.points:
+    for pt in pam.points:            # (a rack's brackets, pamkin.robot.rack, stand up to 50 mm out)
         d = bones.body_signed_distance(pt.body, np.array([pt.location]))[0]
-        assert 0.0 <= d <= 0.020, (pt.name, d)
+        assert 0.0 <= d <= (0.050 if pt.name in (ANCHOR, GUIDE) else 0.020), (pt.name, d)
     robot = PamRobot(Design("one", (pam,)), skel, sides=("r",))
     q = random_poses(skel, load_rom("robot_thesis", "r"), 300, seed=0)
     with warnings.catch_warnings():
