@@ -299,7 +299,7 @@ class RunConfig:
     """An optimisation run: the top-level keys, one section per stage, the per-actuator tables."""
 
     design: str = key("v2_seed", "seed design: a design file, a run folder or a keyword ('thesis', "
-                                 "'split_gluteal', 'v2_seed'); '' = the built-in thesis design")
+                                 "'split_gluteal', 'v2_seed', 'merged_seed'); '' = the built-in thesis design")
     actuators: list[int] = key(None, "actuator ids to optimise; [] = all", factory=list)
     warm_start: str = key("", "run folder whose design.yaml seeds the routes and sizes (its diameter and parallel "
                               "count tried first; the full loop only where they fail)")

@@ -23,7 +23,7 @@ def add_parsers(sub) -> None:
                     "feasible-frame fraction (pamkin gait). Prints a scorecard; exits 1 when a limit fails "
                     f"(limits: {LIMITS_FILE}), 2 on bad input.")
     s.add_argument("design", nargs="?", default=None,
-                   help="design file, a `pamkin optimize` run folder, 'thesis', 'split_gluteal' or 'v2_seed' (default: the robot's design "
+                   help="design file, a `pamkin optimize` run folder, 'thesis', 'split_gluteal', 'v2_seed' or 'merged_seed' (default: the robot's design "
                         "robot/data/thesis_design.yaml)")
     s.add_argument("--json", action="store_true", help="print one JSON object (pams, summary, criteria) instead of the scorecard (default: the scorecard)")
     s.add_argument("--out", help="folder for audit.json, scorecard.txt, criteria.png and view.html, written whole or "

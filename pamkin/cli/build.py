@@ -17,7 +17,7 @@ def add_parsers(sub) -> None:
                     "totals for both sides — and assembly.html, the assembled robot with PAM bodies at their "
                     "inflated size (assembly.png with --screenshot).")
     s.add_argument("design", nargs="?", default=None,
-                   help="a `pamkin optimize` run folder, a design file, 'thesis', 'split_gluteal' or 'v2_seed' "
+                   help="a `pamkin optimize` run folder, a design file, 'thesis', 'split_gluteal', 'v2_seed' or 'merged_seed' "
                         "(default: the robot's design robot/data/thesis_design.yaml)")
     s.add_argument("--out", help="output folder (default: build-<design name> in the current folder); refused if "
                                  "it exists unless --force")

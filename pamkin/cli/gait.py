@@ -24,7 +24,7 @@ def add_parsers(sub) -> None:
                     "saturated PAMs, dead zones and supply air per stride. The moments are those of OpenSim's "
                     "scaled subject01 (about 72 kg), used as given.")
     s.add_argument("design", nargs="?", default=None,
-                   help="design file, a `pamkin optimize` run folder, 'thesis', 'split_gluteal' or 'v2_seed' (default: the robot's design "
+                   help="design file, a `pamkin optimize` run folder, 'thesis', 'split_gluteal', 'v2_seed' or 'merged_seed' (default: the robot's design "
                         "robot/data/thesis_design.yaml)")
     s.add_argument("--ik", default=str(DEFAULT_IK), help="IK angles .mot (default: the shared subject01 trial)")
     s.add_argument("--id", default=str(DEFAULT_ID), help="ID moments .sto (default: the shared subject01 trial)")

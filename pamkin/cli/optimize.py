@@ -106,7 +106,7 @@ def add_parsers(sub) -> None:
                         "pulley-block ratio, and its route where the continued bone rounds would end over a strain "
                         "or force limit it keeps (overrides the config; default: none)")
     s.add_argument("--design", metavar="DESIGN",
-                   help="seed design: a design file, a run folder, 'thesis', 'split_gluteal' or 'v2_seed' (overrides the config; default: "
+                   help="seed design: a design file, a run folder, 'thesis', 'split_gluteal', 'v2_seed' or 'merged_seed' (overrides the config; default: "
                         "the config's, 'v2_seed')")
     s.add_argument("--quiet", action="store_true", help="no progress lines on stderr (default: progress shown)")
     s.add_argument("--no-audit", action="store_true",

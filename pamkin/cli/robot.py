@@ -35,7 +35,7 @@ def add_parsers(sub) -> None:
                     "peak), peak ratio, sign agreement and dead-zone fraction, on a 1-D sweep of the primary "
                     "coordinate (others 0) and 2-D grids primary x secondary; then thesis groups and joint "
                     "capacity envelopes.")
-    s.add_argument("--design", help="design file, 'thesis' (the thesis design), 'split_gluteal' or 'v2_seed' (default: the robot's "
+    s.add_argument("--design", help="design file, 'thesis' (the thesis design), 'split_gluteal', 'v2_seed' or 'merged_seed' (default: the robot's "
                                     "design robot/data/thesis_design.yaml)")
     s.add_argument("--side", choices=("r", "l"), default="r", help="leg side (default: r)")
     s.add_argument("-n", type=int, default=41, help="samples of the 1-D sweeps, 2..1001 (default: 41)")

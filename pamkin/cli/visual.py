@@ -26,7 +26,7 @@ def add_parsers(sub) -> None:
                     "dead zone is magenta. --sweep animates one coordinate over the design's range of motion "
                     "(forth and back); other coordinates are 0 unless set with --set.")
     s.add_argument("--html", required=True, metavar="FILE", help="the page to write")
-    s.add_argument("--design", help="design file, 'thesis' (the thesis design), 'split_gluteal' or 'v2_seed' (default: the robot's design "
+    s.add_argument("--design", help="design file, 'thesis' (the thesis design), 'split_gluteal', 'v2_seed' or 'merged_seed' (default: the robot's design "
                                     "robot/data/thesis_design.yaml)")
     s.add_argument("--geometry", metavar="DIR",
                    help=f"folder of the .vtp bone meshes (default: {DEFAULT_GEOMETRY} if it exists, else "
@@ -56,7 +56,7 @@ def add_parsers(sub) -> None:
                     "hip_flexion for a knee PAM), torque about both; and the 1-D torque curves of the primary "
                     "coordinate with the dead zones (PAM strain outside Festo's range) shaded. Range of motion "
                     "of the design, other coordinates 0. Writes PNG files and index.html into --out.")
-    s.add_argument("--design", help="design file, 'thesis' (the thesis design), 'split_gluteal' or 'v2_seed' (default: the robot's design "
+    s.add_argument("--design", help="design file, 'thesis' (the thesis design), 'split_gluteal', 'v2_seed' or 'merged_seed' (default: the robot's design "
                                     "robot/data/thesis_design.yaml)")
     s.add_argument("--out", default="pamkin-report", metavar="DIR",
                    help="output folder, written whole or not at all; refused if it holds files unless --force "

@@ -78,6 +78,11 @@ SPLIT_GLUTEAL_DESIGN = ROBOT_DIR / "data" / "split_gluteal_design.yaml"
 #: paths (thesis defects beyond the optimiser's boxes): the seed of the default optimiser run
 #: (tools/make_split_gluteal.py).
 V2_SEED_DESIGN = ROBOT_DIR / "data" / "v2_seed_design.yaml"
+#: The v2 seed with synergists merged into 22 PAMs per side (tools/make_merged_seed.py): fewer bodies to place.
+MERGED_SEED_DESIGN = ROBOT_DIR / "data" / "merged_seed_design.yaml"
+#: The designs a user argument may name by keyword (:func:`resolve_design_path`).
+NAMED_DESIGNS = {"thesis": THESIS_DESIGN, "split_gluteal": SPLIT_GLUTEAL_DESIGN, "v2_seed": V2_SEED_DESIGN,
+                 "merged_seed": MERGED_SEED_DESIGN}
 #: The robot's current design (starts as the thesis design; ``pamkin optimize --apply`` replaces it).
 ROBOT_DESIGN = ROBOT_DIR / "data" / "thesis_design.yaml"
 DIAMETERS_MM = (10, 20, 40)
@@ -434,8 +439,8 @@ def resolve_design_path(design: str | os.PathLike | None = None) -> Path:
     Args:
         design: ``None`` (the robot's current design ``robot/data/thesis_design.yaml``), the keywords
             ``"thesis"`` (``robot/data/thesis_design.yaml``), ``"split_gluteal"``
-            (``robot/data/split_gluteal_design.yaml``) and ``"v2_seed"``
-            (``robot/data/v2_seed_design.yaml``), a design file, or a run folder of
+            (``robot/data/split_gluteal_design.yaml``), ``"v2_seed"`` (``robot/data/v2_seed_design.yaml``) and
+            ``"merged_seed"`` (``robot/data/merged_seed_design.yaml``), a design file, or a run folder of
             ``pamkin optimize`` (its ``design.yaml``).
 
     Raises:
@@ -443,12 +448,8 @@ def resolve_design_path(design: str | os.PathLike | None = None) -> Path:
     """
     if design is None:
         return ROBOT_DESIGN
-    if str(design) == "thesis":
-        return THESIS_DESIGN
-    if str(design) == "split_gluteal":
-        return SPLIT_GLUTEAL_DESIGN
-    if str(design) == "v2_seed":
-        return V2_SEED_DESIGN
+    if str(design) in NAMED_DESIGNS:
+        return NAMED_DESIGNS[str(design)]
     path = Path(design)
     if path.is_dir():
         if not (path / "design.yaml").is_file():
