@@ -222,13 +222,17 @@ def conflicts(cands: list[Candidate], states: list, kin, gap: float = BODY_GAP_M
     i, j = np.triu_indices(C, 1)
     keep = pam[i] != pam[j]
     i, j = i[keep], j[keep]
+    host = np.array([c.mount.host for c in cands])
+    same = host[i] == host[j]                      # fixed to each other: one check in the host frame
+    A, B = np.stack([c.a for c in cands]), np.stack([c.b for c in cands])
+    d = segment_distances(A[i[same]], B[i[same]], A[j[same]], B[j[same]])
     close = np.zeros(len(i), dtype=bool)
+    close[np.flatnonzero(same)[d < rad[i[same]] + rad[j[same]] + gap]] = True
     for st in states:
         Aw, Bw = world(cands, st, kin)
         for s in range(len(Aw)):
-            todo = np.flatnonzero(~close)
-            d = segment_distances(Aw[s, i[todo]], Bw[s, i[todo]], Aw[s, j[todo]], Bw[s, j[todo]])
-            close[todo[d < rad[i[todo]] + rad[j[todo]] + gap]] = True
+            todo = np.flatnonzero(~close & ~same)
+            close[todo[_near(Aw[s], Bw[s], i[todo], j[todo], rad[i[todo]] + rad[j[todo]] + gap)]] = True
     out = [np.stack([i[close], j[close]], axis=1)]
     if mirrored is not None:
         st, mirror = mirrored
@@ -240,10 +244,20 @@ def conflicts(cands: list[Candidate], states: list, kin, gap: float = BODY_GAP_M
         hit = np.zeros(len(ii), dtype=bool)
         for s in range(len(Ar)):
             todo = np.flatnonzero(~hit)
-            d = segment_distances(Ar[s, ii[todo]], Br[s, ii[todo]], Al[s, jj[todo]], Bl[s, jj[todo]])
-            hit[todo[d < rad[ii[todo]] + rad[jj[todo]] + gap]] = True
+            W = (np.concatenate([Ar[s], Al[s]]), np.concatenate([Br[s], Bl[s]]))
+            hit[todo[_near(*W, ii[todo], C + jj[todo], rad[ii[todo]] + rad[jj[todo]] + gap)]] = True
         out.append(np.stack([ii[hit], jj[hit]], axis=1))
     return np.concatenate(out) if out else np.zeros((0, 2), int)
+
+
+def _near(A: np.ndarray, B: np.ndarray, i: np.ndarray, j: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """Whether segments ``i`` and ``j`` of (A, B) ((N, 3) ends) come closer than ``limit``: the exact distance
+    only where their bounding spheres (centre the midpoint, radius half the length) do."""
+    M, h = 0.5 * (A + B), 0.5 * np.linalg.norm(B - A, axis=1)
+    out = np.linalg.norm(M[i] - M[j], axis=1) - h[i] - h[j] < limit
+    k = np.flatnonzero(out)
+    out[k] = segment_distances(A[i[k]], B[i[k]], A[j[k]], B[j[k]]) < limit[k]
+    return out
 
 
 def choose(cands: list[Candidate], pairs: np.ndarray, n_pams: int, time_limit: float = 120.0

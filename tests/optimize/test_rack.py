@@ -261,3 +261,43 @@ def test_rack_turns_by_hand():
     assert g2 == pytest.approx(guide) and e2 == pytest.approx(end)
     with pytest.raises(ValueError, match="hangs on no rack"):
         rack_turns(pam, pts)
+
+
+def test_conflicts_agree_with_every_pair_at_every_pose(skel):
+    """The pairwise conflicts (same-host pairs checked once in the host frame, the others at every pose after a
+    bounding-sphere test; right against the mirrored left) are exactly those of a brute-force check of every
+    pair at every pose with the audit's segment distance."""
+    from pamkin.human.bones import segment_distances
+    from pamkin.optimize.rack_layout import Candidate, conflicts, mirror_candidate, world
+
+    rng = np.random.default_rng(7)
+    hosts = ["femur_r", "tibia_r", "pelvis", "calcn_r"]
+    cands = []
+    for k in range(40):
+        a = rng.uniform(-0.15, 0.15, 3)
+        b = a + rng.normal(size=3) * 0.08
+        cands.append(Candidate(k % 9, RackMount("origin", hosts[k % 4], tuple(a), tuple(b)), 0.008 + 0.01 * rng.random(),
+                               a, b, 0.02))
+    q = _poses(skel, 12)
+    st = skel.kinematics.forward(q, warn_range=False)
+    pairs = conflicts(cands, [st], skel.kinematics, mirrored=(st, mirror_candidate))
+    got = {tuple(p) for p in pairs}
+    rad = np.array([c.radius for c in cands])
+    A, B = world(cands, st, skel.kinematics)
+    Al, Bl = world([mirror_candidate(c) for c in cands], st, skel.kinematics)
+    want = set()
+    for x in range(len(cands)):
+        for y in range(len(cands)):
+            lim = rad[x] + rad[y] + BODY_GAP_M
+            if x < y and cands[x].pam != cands[y].pam:
+                d = segment_distances(A[:, x], B[:, x], A[:, y], B[:, y])
+                if np.min(d) < lim:
+                    want.add((x, y))
+    right_left = set()
+    for x in range(len(cands)):
+        for y in range(len(cands)):
+            d = segment_distances(A[:, x], B[:, x], Al[:, y], Bl[:, y])
+            if np.min(d) < rad[x] + rad[y] + BODY_GAP_M:
+                right_left.add((x, y))
+    assert len(want) > 10 and len(right_left) > 0
+    assert got == want | right_left and len(pairs) == len(want) + len(right_left)
