@@ -73,7 +73,7 @@ class LocalExecutor:
 
     def map_unordered(self, fn: Callable, ctx, tasks: list) -> Iterator[tuple[int, object]]:
         """``(index, fn(ctx, tasks[index]))`` as each task finishes."""
-        if self.workers == 1 or len(tasks) == 1:
+        if self.workers == 1 or len(tasks) <= 1:
             for i, t in enumerate(tasks):
                 yield i, run_task(fn, ctx, t)
             return
@@ -151,7 +151,7 @@ def map_tasks(ctx, fn: Callable, tasks: list, label: str, cost: list[float] | No
         progress_line(i + 1, len(tasks), r, ctx.stream, resumed=True)
     executor = ctx.executor or LocalExecutor(ctx.cfg.workers)
     out = list(done)
-    for i, r in executor.map_unordered(fn, ctx, todo):
+    for i, r in executor.map_unordered(fn, ctx, todo) if todo else ():     # all stored: no workers to start
         if store is not None:
             store.save(label, todo[i], r)
         out.append(r)

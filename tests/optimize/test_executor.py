@@ -68,6 +68,21 @@ def test_map_tasks_stores_each_result_and_a_resumed_map_solves_only_the_rest(tmp
     assert task_key((1, (20, 2))) == task_key((1, (20, 2))) != task_key((1, (20, 3)))
 
 
+def test_a_stage_whose_every_task_is_stored_resumes_with_several_workers(tmp_path):
+    """A run killed after a stage's last task was stored: the resumed stage call takes every result from the
+    store and starts no worker (with 2 workers this raised "max_workers must be greater than 0")."""
+    ctx = RunContext(RunConfig().replace({"workers": 2, "seed": 1}), None, None, None, store=RunStore(tmp_path))
+    assert sorted(map_tasks(ctx, _square, [1, 2, 3], "stage")) == [2, 5, 10]
+    resumed = RunContext(RunConfig().replace({"workers": 2, "seed": 1}), None, None, None,
+                         store=RunStore(tmp_path))
+
+    def never(c, t):
+        raise AssertionError("a stored task was solved again")
+
+    assert sorted(map_tasks(resumed, never, [1, 2, 3], "stage")) == [2, 5, 10]
+    assert list(LocalExecutor(2).map_unordered(never, resumed, [])) == []
+
+
 def test_local_executor_runs_tasks_in_worker_processes():
     ctx = RunContext(RunConfig().replace({"workers": 2}), None, None, None)
     out = dict(LocalExecutor(2).map_unordered(_pid, ctx, list(range(4))))
