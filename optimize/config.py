@@ -257,9 +257,11 @@ class Rack:
     gap_m: float = key(0.005, "least gap between two PAM bodies and between a PAM body and bone [m]", 0, 0.1)
     bracket_max_m: float = key(0.05, "farthest a rack bracket (anchor, guide pulley) may be from its bone [m]", 0, 0.2)
     angles: int = key(16, "sides of the bone tried around its axis", 4, 64)
-    poses: int = key(200, "random poses (the stage's own stream) the candidates are checked at", 1, 5000)
-    check_poses: int = key(2000, "more random poses (another stream) the chosen racks are checked at again; a rack "
-                                 "failing there is dropped and the choice made again", 0, 20000)
+    poses: int = key(200, "random poses (the stage's own stream) the candidates are checked at, and half as many "
+                          "more at the range's edges (each coordinate at a limit or uniform)", 1, 5000)
+    check_poses: int = key(2000, "more random poses (another stream), and half as many at the range's edges, the "
+                                 "chosen racks are checked at again; a rack failing there is dropped and the choice "
+                                 "made again", 0, 20000)
     gait: bool = key(True, "check the layout at the poses of the audit's walking trial too (left against right)")
     gait_stride: int = key(6, "every n-th frame of the walking trial", 1, 1000)
     time_limit_s: float = key(120.0, "time limit of the layout's integer program [s]", 1, 3600)

@@ -301,3 +301,33 @@ def test_conflicts_agree_with_every_pair_at_every_pose(skel):
                 right_left.add((x, y))
     assert len(want) > 10 and len(right_left) > 0
     assert got == want | right_left and len(pairs) == len(want) + len(right_left)
+
+
+def test_the_stage_checks_racks_at_the_range_edges_too(skel):
+    """The stage's poses: ``n`` uniform ones and ``n // 2`` at the range's edges, where about a third of each varied
+    coordinate sits at its lower and a third at its upper limit (uniform samples almost never do); the other
+    coordinates where the uniform poses have them."""
+    from types import SimpleNamespace
+
+    from pamkin.audit.measure import audit_coordinates
+    from pamkin.human.rom import load_rom
+    from pamkin.optimize.config import RunConfig
+    from pamkin.optimize.stages.rack import RACK_STREAM, stage_poses
+
+    rom = load_rom("robot_thesis", "r")
+    ctx = SimpleNamespace(cfg=RunConfig(), human=skel, rom=rom)
+    q = stage_poses(ctx, 600, RACK_STREAM)
+    assert q.shape == (900, len(skel.coordinates))
+    assert stage_poses(ctx, 0, RACK_STREAM).shape == (0, len(skel.coordinates))
+    uniform, edge = q[:600], q[600:]
+    for c in ("hip_flexion_r", "knee_angle_r", "lumbar_extension"):
+        k = skel.coordinates.index(c)
+        lo, hi = rom.bounds(c)
+        at_limit = np.isclose(edge[:, k], lo, atol=1e-12) | np.isclose(edge[:, k], hi, atol=1e-12)
+        assert 0.55 < at_limit.mean() < 0.78                          # two thirds at a limit
+        assert not (np.isclose(uniform[:, k], lo, atol=1e-9) | np.isclose(uniform[:, k], hi, atol=1e-9)).any()
+        assert lo - 1e-12 <= edge[:, k].min() and edge[:, k].max() <= hi + 1e-12
+    varied = set(audit_coordinates(rom))
+    for k, c in enumerate(skel.coordinates):
+        if c not in varied and "adduction" not in c:
+            np.testing.assert_array_equal(edge[:, k], uniform[0, k])
