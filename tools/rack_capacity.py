@@ -4,8 +4,9 @@
 
 Every PAM of ``DESIGN`` keeps its route (so its racks sit where the rack stage would put them: on the bones of
 its route's two ends) but gets a body of diameter ``d`` [mm] and resting length ``L`` [m], one PAM, no pulley
-block; the rack layout (``pamkin.optimize.rack_layout.layout``, the stage's poses: 200 random poses of its
-stream, every 6th walking frame, the chosen racks checked again at 2000 more) then says how many of them fit
+block; the rack layout (``pamkin.optimize.rack_layout.layout``, the stage's uniform poses: 200 random poses of
+its stream, every 6th walking frame, the chosen racks checked again at 2000 more; not the stage's edge poses,
+which can only remove places) then says how many of them fit
 at once, 5 mm from each other and from bone at every checked pose, brackets at most 50 mm from their bone. It
 also prints, per PAM of the design, the shortest resting length its route's stroke allows at 1:1 (the route's
 length range over 2000 random poses of the audit's stream divided by the strain range Festo allows its
